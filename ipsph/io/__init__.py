@@ -1,0 +1,84 @@
+"""Output folder writers: VTU frames, the PVD series, stats.csv and run.json provenance.
+
+Layout of an output folder OUT (fixed; the runner fills it, `ipsph render` reads it):
+
+    OUT/run.pvd                   per timestep two DataSets: part 0 the fluid frame, part 1 boundary.vtu
+    OUT/frames/fluid_000000.vtu   one per frame, binary raw appended (zlib level 1 on request)
+    OUT/boundary.vtu              boundary particles, written once (fields `volume`, `id`)
+    OUT/boundary_surface.vtp      the transformed boundary meshes, for renders
+    OUT/stats.csv                 one row per step
+    OUT/run.json                  provenance
+    OUT/renders/frame_000000.png, OUT/plots/*.png, OUT/video.mp4|gif
+
+Every file that a reader may open while the run goes on is replaced atomically
+(temporary name in the same folder, fsync, os.replace), so a crash or a full disk
+leaves the previous version intact and never a partial file under the final name.
+"""
+from __future__ import annotations
+
+import os
+from contextlib import contextmanager
+from pathlib import Path
+
+from ..errors import WriteError
+
+__all__ = [
+    "FRAMES_DIR", "RUN_PVD", "BOUNDARY_VTU", "BOUNDARY_SURFACE", "STATS_CSV", "RUN_JSON",
+    "RENDERS_DIR", "PLOTS_DIR", "frame_file", "atomic_path",
+]
+
+RUN_PVD = "run.pvd"
+FRAMES_DIR = "frames"
+BOUNDARY_VTU = "boundary.vtu"
+BOUNDARY_SURFACE = "boundary_surface.vtp"
+STATS_CSV = "stats.csv"
+RUN_JSON = "run.json"
+RENDERS_DIR = "renders"
+PLOTS_DIR = "plots"
+
+
+def frame_file(index: int) -> str:
+    """Relative path of fluid frame `index` inside an output folder."""
+    return f"{FRAMES_DIR}/fluid_{index:06d}.vtu"
+
+
+def _fsync_dir(folder: Path) -> None:
+    try:
+        fd = os.open(folder, os.O_RDONLY)
+    except OSError:  # some filesystems / platforms cannot open a directory
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+@contextmanager
+def atomic_path(path: str | os.PathLike, what: str = "file"):
+    """Yield a temporary path beside `path`; on success fsync it and rename it over `path`.
+
+    On any exception the temporary file is removed, `path` keeps its previous content, and
+    the error is raised as a one-line `WriteError` naming the file (WriteError passes through).
+    """
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        yield tmp
+        with open(tmp, "rb+") as f:
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+        _fsync_dir(path.parent)
+    except BaseException as exc:
+        try:
+            tmp.unlink()
+        except OSError:
+            pass
+        if isinstance(exc, WriteError) or not isinstance(exc, Exception):
+            raise
+        reason = " ".join(str(exc).split()) or type(exc).__name__
+        raise WriteError(
+            f"cannot write {what} {path} (resolved {path.resolve()}): {reason}; "
+            f"check free disk space and write permission"
+        ) from exc

@@ -1,0 +1,133 @@
+"""stats.csv: one row per simulation step, appended and flushed as the run goes.
+
+Columns the runner writes (plots use these names): step, time, dt, particles,
+density_error_mean_pct, density_error_max_pct, divergence_error_pct, pd_passes,
+divergence_iterations, density_iterations, max_speed, kinetic_energy, dt_clamped (0/1),
+ms_step, ms_neighbourSearch, ms_solvePDConstraints, ms_divergenceSolve, ms_densitySolve, ms_xsph.
+"""
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import OutputError, WriteError
+from . import atomic_path
+
+__all__ = ["StatsWriter", "read_stats", "STATS_COLUMNS"]
+
+STATS_COLUMNS = (
+    "step", "time", "dt", "particles", "density_error_mean_pct", "density_error_max_pct",
+    "divergence_error_pct", "pd_passes", "divergence_iterations", "density_iterations",
+    "max_speed", "kinetic_energy", "dt_clamped", "ms_step", "ms_neighbourSearch",
+    "ms_solvePDConstraints", "ms_divergenceSolve", "ms_densitySolve", "ms_xsph",
+)
+
+
+def _fmt(v) -> str:
+    if v is None:
+        return ""
+    if isinstance(v, (bool, np.bool_)):
+        return "1" if v else "0"
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    v = float(v)
+    return repr(v) if math.isfinite(v) else ("nan" if math.isnan(v) else ("inf" if v > 0 else "-inf"))
+
+
+class StatsWriter:
+    """Append-only CSV writer: header once, one flushed line per `write` (no fsync per row).
+
+    `truncate_after_step=k` resumes an existing file: rows with step <= k are kept (the file is
+    rewritten atomically) and later rows are appended; without it the file is started afresh.
+    """
+
+    def __init__(self, path: str | os.PathLike, columns: list[str] | tuple[str, ...] = STATS_COLUMNS,
+                 *, truncate_after_step: int | None = None):
+        self.path = Path(path)
+        self.columns = list(columns)
+        header = ",".join(self.columns) + "\n"
+        if truncate_after_step is None:
+            self._rewrite(header)
+        else:
+            self._truncate(header, truncate_after_step)
+        try:
+            self._file = open(self.path, "a", buffering=1, newline="")
+        except OSError as exc:
+            raise WriteError(f"cannot open stats file {self.path} (resolved {self.path.resolve()}): "
+                             f"{exc.strerror or exc}; check write permission") from exc
+
+    def _rewrite(self, text: str) -> None:
+        with atomic_path(self.path, "stats file") as tmp:
+            with open(tmp, "w", newline="") as f:
+                f.write(text)
+
+    def _truncate(self, header: str, last_step: int) -> None:
+        if not self.path.is_file():
+            raise OutputError(f"cannot resume stats file {self.path} (resolved {self.path.resolve()}): "
+                              f"it does not exist")
+        with open(self.path, newline="") as f:
+            lines = f.read().splitlines(keepends=True)
+        if not lines or lines[0].strip() != header.strip():
+            raise OutputError(f"cannot resume stats file {self.path}: its header does not match the "
+                              f"columns {','.join(self.columns)}; start a new output folder")
+        i_step = self.columns.index("step")
+        kept = [header]
+        for line in lines[1:]:
+            cells = line.rstrip("\r\n").split(",")
+            if len(cells) != len(self.columns) or not line.endswith("\n"):
+                break  # a torn last line from an interrupted run
+            try:
+                if float(cells[i_step]) > last_step:
+                    break
+            except ValueError:
+                break
+            kept.append(line)
+        self._rewrite("".join(kept))
+
+    def write(self, row: dict) -> None:
+        """Append one row; unknown keys are an error, missing ones are left empty (read as NaN)."""
+        extra = set(row) - set(self.columns)
+        if extra:
+            raise KeyError(f"stats row has columns not in the header: {sorted(extra)}")
+        line = ",".join(_fmt(row.get(c)) for c in self.columns) + "\n"
+        try:
+            self._file.write(line)
+        except OSError as exc:
+            raise WriteError(f"cannot write stats file {self.path} (resolved {self.path.resolve()}): "
+                             f"{exc.strerror or exc}; check free disk space") from exc
+
+    def close(self) -> None:
+        if not self._file.closed:
+            self._file.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+def read_stats(path: str | os.PathLike) -> dict[str, np.ndarray]:
+    """Read stats.csv into {column: float64 array}; a torn last line (running run) is skipped."""
+    path = Path(path)
+    try:
+        with open(path, newline="") as f:
+            header = f.readline().strip()
+            body = f.read()
+    except OSError as exc:
+        raise OutputError(f"cannot read stats file {path} (resolved {path.resolve()}): "
+                          f"{exc.strerror or exc}") from exc
+    if not header:
+        raise OutputError(f"stats file {path} (resolved {path.resolve()}) has no header")
+    names = header.split(",")
+    if not body.endswith("\n"):  # the writer may be half-way through a line
+        body = body[: body.rfind("\n") + 1]
+    rows = [ln for ln in body.splitlines() if ln.count(",") == len(names) - 1]
+    if not rows:
+        return {n: np.zeros(0) for n in names}
+    data = np.genfromtxt(rows, delimiter=",", dtype=np.float64, ndmin=2, missing_values="",
+                         filling_values=np.nan)
+    return {n: np.ascontiguousarray(data[:, i]) for i, n in enumerate(names)}
