@@ -1,0 +1,219 @@
+"""Benchmark support: machine-load sampler and the SPlisHSPlasH peer runner.
+
+The peer tests skip (with the reason) when pySPlisHSPlasH is not installed, which is the case in CI:
+it is a benchmark peer, never a dependency.
+"""
+from __future__ import annotations
+
+import math
+import os
+import time
+from pathlib import Path
+
+import pytest
+
+from ipsph.benchmark import machine
+from ipsph.benchmark.machine import LoadSampler, load_sampler, machine_info, peak_rss_mb
+from ipsph.errors import ConfigError
+
+SCENES = Path("/work/shared/anchors/splishsplash/Scenes")
+
+
+# ---------------------------------------------------------------------------------------------------
+# machine.py
+# ---------------------------------------------------------------------------------------------------
+def test_load_sampler_fractions_are_sane():
+    with load_sampler(interval=0.1) as sampler:
+        time.sleep(0.45)
+    s = sampler.summary()
+    assert 0.4 <= s.seconds < 5.0  # slept 0.45 s; a loaded machine may delay the join, not by seconds
+    assert s.samples >= 3  # 0.45 s / 0.1 s = 4 full intervals, allow one lost to scheduling
+    for x in (s.cpu_busy_mean, s.cpu_busy_max, s.others_busy_mean, s.others_busy_max):
+        assert 0.0 <= x <= 1.0
+    assert s.cpu_busy_mean <= s.cpu_busy_max + 1e-12
+    assert s.others_busy_mean <= s.cpu_busy_mean + 1e-12  # others' share is part of the whole
+    assert s.loadavg_max >= s.loadavg_mean >= 0.0
+    assert s.cpus == os.cpu_count()
+    assert set(s.as_dict()) >= {"loadavg_mean", "loadavg_max", "cpu_busy_mean", "others_busy_mean"}
+
+
+def test_load_sampler_counts_own_work_as_busy_not_as_others():
+    """Spinning this process for 0.6 s must show as busy CPU, and mostly not as someone else's load."""
+    with load_sampler(interval=0.2) as sampler:
+        t_end = time.perf_counter() + 0.6
+        while time.perf_counter() < t_end:
+            pass
+    s = sampler.summary()
+    ncpu = os.cpu_count() or 1
+    # one spinning thread is 1/ncpu of the machine; 0.5 of that leaves room for the sampler's GIL share
+    assert s.cpu_busy_mean >= 0.5 / ncpu
+    # our own spin is subtracted: others' share is below the total by at least a quarter core
+    assert s.others_busy_mean <= s.cpu_busy_mean - 0.25 / ncpu
+
+
+def test_load_sampler_short_run_still_gives_one_sample():
+    s = LoadSampler(interval=5.0)
+    s.start()
+    time.sleep(0.15)  # > a few 10 ms jiffies so /proc/stat moves, far below the 5 s interval
+    summary = s.stop()
+    assert summary.samples == 1
+    assert not math.isnan(summary.cpu_busy_mean)
+
+
+def test_load_sampler_rejects_bad_interval():
+    with pytest.raises(ValueError):
+        LoadSampler(interval=0.0)
+
+
+def test_proc_stat_parsing():
+    stat = machine._read_proc_stat()
+    if stat is None:
+        pytest.skip("no /proc/stat on this platform")
+    busy, total = stat
+    assert 0 <= busy <= total
+
+
+def test_peak_rss_and_machine_info():
+    rss = peak_rss_mb()
+    assert 5.0 < rss < 1e6  # a Python interpreter with numpy: tens of MiB, not bytes and not terabytes
+    blob = bytearray(64 * 1024 * 1024)  # touch 64 MiB: the peak must grow by about that
+    blob[::4096] = b"x" * len(blob[::4096])
+    assert peak_rss_mb() >= rss or peak_rss_mb() >= 64.0
+    del blob
+    info = machine_info()
+    assert info["logical_cores"] >= info["usable_cores"] >= 1
+    assert isinstance(info["cpu_model"], str) and info["cpu_model"]
+    assert info["memory_gb"] > 0.1
+
+
+# ---------------------------------------------------------------------------------------------------
+# peer.py (argument checks need no peer)
+# ---------------------------------------------------------------------------------------------------
+def test_peer_param_args_and_env():
+    from ipsph.benchmark import peer
+
+    args = peer._param_args({"boundaryHandlingMethod": 0, "Fluid:viscosity": 0.01, "gravitation": [0, -9.81, 0],
+                             "enableDivergenceSolver": True})
+    assert args == ["--param", "boundaryHandlingMethod:0", "--param", "Fluid:viscosity:0.01",
+                    "--param", "gravitation:0,-9.81,0", "--param", "enableDivergenceSolver:true"]
+    with pytest.raises(ConfigError):
+        peer._param_args({"a:b:c": 1})
+    env = peer.peer_env(3)
+    assert env["OMP_NUM_THREADS"] == "3"
+    assert str(peer._REPO_ROOT) in env["PYTHONPATH"].split(os.pathsep)
+    assert (peer._REPO_ROOT / "ipsph" / "benchmark" / "peer.py").is_file()
+
+
+def test_worker_scene_rewrite_keeps_stock_scene(tmp_path):
+    """The rewritten scene has absolute mesh paths, the method, stopAt, no exports, and the overrides."""
+    import json
+
+    from ipsph.benchmark import _peer_worker as w
+
+    src = tmp_path / "scenes" / "s.json"
+    src.parent.mkdir()
+    stock = {"Configuration": {"simulationMethod": 4, "enablePartioExport": True},
+             "Materials": [{"id": "Fluid", "viscosity": 0.1}],
+             "RigidBodies": [{"geometryFile": "../models/UnitBox.obj"}]}
+    src.write_text(json.dumps(stock))
+    params = w.parse_params(["boundaryHandlingMethod:0", "Fluid:viscosity:0.02", "gravitation:0,-1,0"])
+    out = w.write_scene(src, tmp_path, "pf", 0.25, params)
+    scene = json.loads(out.read_text())
+    assert json.loads(src.read_text()) == stock
+    conf = scene["Configuration"]
+    assert conf["simulationMethod"] == 5 and conf["stopAt"] == 0.25
+    assert conf["enablePartioExport"] is False and conf["enableVTKExport"] is False
+    assert conf["boundaryHandlingMethod"] == 0 and conf["gravitation"] == [0, -1, 0]
+    assert scene["Materials"][0]["viscosity"] == 0.02
+    assert scene["RigidBodies"][0]["geometryFile"] == str(tmp_path / "models" / "UnitBox.obj")
+    with pytest.raises(SystemExit):
+        w.write_scene(src, tmp_path, "pf", 0.25, w.parse_params(["Water:viscosity:1"]))
+
+
+def test_run_peer_rejects_bad_arguments(tmp_path):
+    from ipsph.benchmark.peer import run_peer
+
+    scene = tmp_path / "scene.json"  # argument checks come before the scene is read: any file will do
+    scene.write_text("{}")
+    with pytest.raises(ConfigError, match="not a file"):
+        run_peer(tmp_path / "missing.json", "dfsph", 0.1, 1)
+    with pytest.raises(ConfigError, match="unknown"):
+        run_peer(scene, "sph", 0.1, 1)
+    with pytest.raises(ConfigError, match="end_time"):
+        run_peer(scene, "dfsph", 0.0, 1)
+    with pytest.raises(ConfigError, match="threads"):
+        run_peer(scene, "dfsph", 0.1, 0)
+
+
+# ---------------------------------------------------------------------------------------------------
+# peer.py against the real SPlisHSPlasH (skipped unless installed)
+# ---------------------------------------------------------------------------------------------------
+def _require_peer():
+    from ipsph.benchmark.peer import peer_available
+
+    ok, why = peer_available()
+    if not ok:
+        pytest.skip(f"SPlisHSPlasH peer not available: {why}")
+    if not (SCENES / "DoubleDamBreak.json").is_file():
+        pytest.skip(f"stock scenes not found at {SCENES}")
+
+
+def test_peer_available_reports_a_reason():
+    from ipsph.benchmark.peer import peer_available
+
+    ok, why = peer_available()
+    assert isinstance(ok, bool) and isinstance(why, str) and why
+    assert peer_available() is peer_available()  # cached
+
+
+@pytest.mark.parametrize("method", ["dfsph", "pf"])
+def test_peer_short_double_dam_break(method):
+    """DoubleDamBreak for 0.05 s with Akinci boundary particles (fast init: no volume map to build)."""
+    _require_peer()
+    from ipsph.benchmark.peer import run_peer
+
+    r = run_peer(SCENES / "DoubleDamBreak.json", method, 0.05, threads=2,
+                 params={"boundaryHandlingMethod": 0}, timeout=600)
+    assert r["fluid_particles"] == 4732  # two 0.7 x 0.75 x 0.7 m blocks at r = 0.025 m (SPlisHSPlasH's count)
+    assert r["boundary_particles"] > 10_000  # a 3.1 m box sampled at ~r spacing: tens of thousands
+    assert r["boundary_handling_method"] == 0
+    assert r["time_step_class"] == {"dfsph": "TimeStepDFSPH", "pf": "TimeStepPF"}[method]
+    assert r["completed"] and r["sim_time"] >= 0.05 - 1e-6
+    # CFL cap 5 ms: at least 10 steps to reach 0.05 s; PF's adaptive steps may be smaller
+    assert 10 <= r["steps"] <= 1000
+    assert 0.0 < r["dt_min"] <= r["dt_max"] <= 0.005 + 1e-7
+    assert r["ms_per_step"] > 0 and r["wall_seconds"] > 0 and r["init_seconds"] >= 0
+    # the blocks are in free fall for the first 0.05 s: density error is tiny, never above 1 %
+    assert 0.0 <= r["density_error_mean_pct"] <= r["density_error_worst_pct"] < 1.0
+    assert r["density_error_nonfinite_steps"] == 0
+    assert r["step_ms"] > 0 and r["pressure_solve_ms"] > 0 and r["neighborhood_search_ms"] > 0
+    assert 10.0 < r["peak_rss_mb"] < 8000.0
+    assert r["threads"] == 2
+    assert r["load"]["samples"] >= 1 and 0.0 <= r["load"]["cpu_busy_mean"] <= 1.0
+
+
+def test_peer_failure_raises_with_stderr_tail(tmp_path):
+    _require_peer()
+    from ipsph.benchmark.peer import run_peer
+
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"Configuration": {}, "RigidBodies": [{"geometryFile": "nope.obj"}]}')
+    with pytest.raises(RuntimeError, match="SPlisHSPlasH peer failed"):
+        run_peer(bad, "dfsph", 0.01, threads=1, timeout=120)
+
+
+def test_peer_unavailable_is_reported_not_raised(monkeypatch, tmp_path):
+    """Without pySPlisHSPlasH (as in CI): peer_available says why, run_peer raises RuntimeError."""
+    from ipsph.benchmark import peer
+
+    peer.peer_available.cache_clear()
+    monkeypatch.setattr(peer.importlib.util, "find_spec", lambda name, *a: None)
+    try:
+        ok, why = peer.peer_available()
+        assert not ok and "not installed" in why
+        with pytest.raises(RuntimeError, match="unavailable"):
+            scene = tmp_path / "scene.json"
+            scene.write_text("{}")
+            peer.run_peer(scene, "dfsph", 0.01, 1)
+    finally:
+        peer.peer_available.cache_clear()
