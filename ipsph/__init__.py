@@ -1,0 +1,14 @@
+"""ipsph: Incompressible Projective SPH (and the PF and DFSPH references) in Numba."""
+__version__ = "0.1.0"
+
+__all__ = ["__version__", "Simulation", "load_scene"]
+
+
+def __getattr__(name):  # lazy: importing ipsph must stay cheap and side-effect free
+    if name == "Simulation":
+        from .simulation import Simulation
+        return Simulation
+    if name == "load_scene":
+        from .scene import load_scene
+        return load_scene
+    raise AttributeError(name)

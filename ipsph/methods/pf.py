@@ -1,0 +1,106 @@
+"""Projective Fluids [WKB16]: the reference method (method.md section 3).
+
+Per step:
+
+    inertial target     s = x + dt v + dt^2 g;  x := s;  neighbours at s (fixed for the step)
+    solvePDConstraints  L local/global passes on C_i = max(rho_i/rho0 - 1, 0)
+    velocities          v = (x - x^n) / dt;  XSPH
+
+`pd_solve` is shared with IPSPH, which wraps the paper's average-density loop around it.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .base import Method, StepReport
+from .pf_passes import pf_global
+from .sph_passes import density_factor_lambda, mean, xsph
+
+
+def pd_solve(method: Method, dt: float, min_passes: int, max_passes: int, tol: float,
+             warm_start: float = 0.0) -> tuple[int, float]:
+    """Local/global passes from x = s until the mean density error <= tol [WKB16 sec. 4; paper Alg. 2].
+
+    Each pass: local step (rho, lam at x) -> stop test -> global step (closed form, Jacobi).
+    The final local step leaves rho, alpha, n_nbrs and err valid at the projected positions.
+    Accumulates the pressure multiplier in state.pd_lambda. Returns (passes, mean error).
+
+    warm_start > 0 (IPSPH only, a [choice] of ours): before the first pass, displace s by the
+    pressure displacement of `warm_start` times the previous step's multipliers, rescaled to
+    the new step (Lam ~ p dt^2), as DFSPH warm-starts its stiffness. The stop test is
+    unchanged, so the result meets the same tolerance in fewer passes.
+    """
+    st = method.state
+    xb, mb, nf, cf, nb, cb = method.lists()
+    h, rho0 = method.h, method.rho0
+    s = st.x.copy()                          # the inertial target
+    n_s = (cf + 1).astype(np.float64)        # n_k = |N(k)| + 1 at s
+    a = dt * dt * method.cfg.pf_stiffness
+    x, x_new = st.x, method.scratch_x
+    lam_sum = st.pd_lambda
+    if warm_start > 0.0 and method.dt_prev is not None:
+        # the global step with a -> infinity is a pure displacement x + d(Lam'), and leaves Lam = Lam'
+        warm = warm_start * (dt / method.dt_prev) ** 2 * lam_sum
+        lam_sum[:] = 0.0
+        pf_global(x, s, st.m, xb, mb, nf, cf, nb, cb, n_s, h, rho0, warm, 1e300, x_new, lam_sum)
+        x, x_new = x_new, x
+    else:
+        lam_sum[:] = 0.0
+    passes = 0
+    while True:
+        density_factor_lambda(x, st.m, xb, mb, nf, cf, nb, cb, h, rho0,
+                              method.rho, method.alpha, method.lam, method.err, method.n_nbrs)
+        err = mean(method.err)
+        if passes >= max_passes or (passes >= min_passes and err <= tol):
+            break
+        pf_global(x, s, st.m, xb, mb, nf, cf, nb, cb, n_s, h, rho0, method.lam, a, x_new, lam_sum)
+        x, x_new = x_new, x
+        passes += 1
+    st.x = x
+    method.scratch_x = x_new
+    return passes, err
+
+
+class ProjectiveMethod(Method):
+    """Shared by PF and IPSPH: the inertial target, the constraint projection, the PF pressure."""
+
+    def __init__(self, *args):
+        super().__init__(*args)
+        self.scratch_x = np.zeros((self.state.n, 3))
+        self.state.zeros("pd_lambda")  # Lam: the step's accumulated multipliers (pressure, warm start)
+
+    def inertial_target(self, dt: float) -> np.ndarray:
+        """s = x + dt v + dt^2 g becomes the current position; returns x^n in the new order."""
+        st = self.state
+        x_old = st.x.copy()
+        st.x += dt * st.v + dt * dt * self.g
+        (x_old,) = self.neighbour_search(x_old)
+        return x_old
+
+    def pf_pressure(self, dt: float) -> np.ndarray:
+        """p_i = -rho0 Lam_i / dt^2 (>= 0): the constraint displacement as SPH pressure (method.md 3)."""
+        return -self.rho0 * self.state.pd_lambda / (dt * dt)
+
+
+class PF(ProjectiveMethod):
+    name = "pf"
+    phases = ("neighbourSearch", "solvePDConstraints", "xsph")
+
+    def step(self, dt: float) -> StepReport:
+        self.report = rep = StepReport(dt=dt)
+        st = self.state
+        x_old = self.inertial_target(dt)
+        with self.timer("solvePDConstraints"):
+            passes = self.cfg.pf_passes
+            rep.pd_passes, _ = pd_solve(self, dt, passes, passes, 0.0)
+        with self.timer("xsph"):
+            st.v[:] = (st.x - x_old) / dt
+            xb, mb, nf, cf, nb, cb = self.lists()
+            xsph(st.x, st.v, st.m, self.rho, xb, mb, nf, cf, nb, cb, self.h, self.scene.viscosity,
+                 self.scratch_v, self.drho)
+            st.v[:] = self.scratch_v
+            rep.divergence_error = dt * mean(np.maximum(self.drho, 0.0)) / self.rho0
+        st.pressure[:] = self.pf_pressure(dt)
+        rep.density_error_mean, rep.density_error_max = self.density_errors()
+        self.dt_prev = dt
+        return rep

@@ -1,0 +1,209 @@
+"""Numba passes shared by the methods (method.md sections 1-2).
+
+Every pass is a gather: `prange` over fluid particles i, reading neighbours j (fluid) and b
+(boundary, effective mass m_b = rho0 Psi_b), writing index i only. Arguments follow one order:
+positions and per-particle inputs, the neighbour lists (nf, cf: fluid indices and counts;
+nb, cb: boundary), scalars, outputs last. Notation: x_ij = x_i - x_j, r_ij = |x_ij|,
+grad W_ij = g(r_ij) x_ij.
+"""
+import numpy as np
+from numba import njit, prange
+
+from ..kernels import grad_w_factor, w
+
+FAST = {"contract", "arcp", "reassoc"}  # no nnan/ninf: NaN checks keep working
+
+
+@njit(parallel=True, fastmath=FAST, cache=True)
+def density_factor_lambda(x, m, xb, mb, nf, cf, nb, cb, h, rho0, rho, alpha, lam, err, n_nbrs):
+    """Density, DFSPH factor, PF multiplier and density error at the current positions.
+
+        rho_i   = m_i W(0) + sum_j m_j W_ij + sum_b m_b W_ib
+        g_i     = sum_j m_j grad W_ij + sum_b m_b grad W_ib
+        alpha_i = 1 / max(|g_i|^2 + sum_j |m_j grad W_ij|^2, 1e-5)          [BK17 eq. 9]
+        C_i     = max(rho_i / rho0 - 1, 0)                                  [WKB16, unilateral]
+        lam_i   = -C_i / (sum_k |G_ik|^2 + 1e-6),  sum_k |G_ik|^2 = (|g_i|^2 + sum_j |m_j grad W_ij|^2) / rho0^2
+        err_i   = C_i;  n_nbrs_i = |{j : r_ij < H}| + |{b : r_ib < H}|
+    """
+    w0 = w(0.0, h)
+    for i in prange(x.shape[0]):
+        xi0 = x[i, 0]
+        xi1 = x[i, 1]
+        xi2 = x[i, 2]
+        rho_i = m[i] * w0
+        g0 = 0.0
+        g1 = 0.0
+        g2 = 0.0
+        s2 = 0.0
+        nn = 0
+        for k in range(cf[i]):
+            j = nf[i, k]
+            d0 = xi0 - x[j, 0]
+            d1 = xi1 - x[j, 1]
+            d2 = xi2 - x[j, 2]
+            r = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+            if r < h:
+                nn += 1
+            rho_i += m[j] * w(r, h)
+            f = m[j] * grad_w_factor(r, h)
+            g0 += f * d0
+            g1 += f * d1
+            g2 += f * d2
+            s2 += f * f * (d0 * d0 + d1 * d1 + d2 * d2)
+        for k in range(cb[i]):
+            b = nb[i, k]
+            d0 = xi0 - xb[b, 0]
+            d1 = xi1 - xb[b, 1]
+            d2 = xi2 - xb[b, 2]
+            r = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+            if r < h:
+                nn += 1
+            rho_i += mb[b] * w(r, h)
+            f = mb[b] * grad_w_factor(r, h)
+            g0 += f * d0
+            g1 += f * d1
+            g2 += f * d2
+        sum_sq = g0 * g0 + g1 * g1 + g2 * g2 + s2
+        rho[i] = rho_i
+        alpha[i] = 1.0 / max(sum_sq, 1e-5)
+        c = max(rho_i / rho0 - 1.0, 0.0)
+        err[i] = c
+        lam[i] = -c / (sum_sq / (rho0 * rho0) + 1e-6)
+        n_nbrs[i] = nn
+
+
+@njit(inline="always", fastmath=FAST)
+def _density_rate_i(i, x, v, m, xb, mb, nf, cf, nb, cb, h):
+    """D rho_i / Dt = sum_j m_j (v_i - v_j) . grad W_ij + sum_b m_b v_i . grad W_ib   [BK17 eq. 4]."""
+    drho = 0.0
+    for k in range(cf[i]):
+        j = nf[i, k]
+        d0 = x[i, 0] - x[j, 0]
+        d1 = x[i, 1] - x[j, 1]
+        d2 = x[i, 2] - x[j, 2]
+        f = m[j] * grad_w_factor(np.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
+        drho += f * ((v[i, 0] - v[j, 0]) * d0 + (v[i, 1] - v[j, 1]) * d1 + (v[i, 2] - v[j, 2]) * d2)
+    for k in range(cb[i]):
+        b = nb[i, k]
+        d0 = x[i, 0] - xb[b, 0]
+        d1 = x[i, 1] - xb[b, 1]
+        d2 = x[i, 2] - xb[b, 2]
+        f = mb[b] * grad_w_factor(np.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
+        drho += f * (v[i, 0] * d0 + v[i, 1] * d1 + v[i, 2] * d2)
+    return drho
+
+
+@njit(parallel=True, fastmath=FAST, cache=True)
+def divergence_residual(x, v, m, xb, mb, nf, cf, nb, cb, h, alpha, n_nbrs, dt, drho, k):
+    """Divergence-solve residual and stiffness [BK17 Alg. 2]:
+    drho_i = max(D rho_i/Dt, 0), zero for particles with < 20 neighbours; k_i = alpha_i drho_i / dt."""
+    for i in prange(x.shape[0]):
+        d = 0.0
+        if n_nbrs[i] >= 20:
+            d = max(_density_rate_i(i, x, v, m, xb, mb, nf, cf, nb, cb, h), 0.0)
+        drho[i] = d
+        k[i] = alpha[i] * d / dt
+
+
+@njit(parallel=True, fastmath=FAST, cache=True)
+def density_residual(x, v, m, xb, mb, nf, cf, nb, cb, h, rho, alpha, rho0, dt, rho_err, k):
+    """Density-solve residual and stiffness [BK17 Alg. 3]:
+    rho*_i = max(rho_i + dt D rho_i/Dt, rho0);  rho_err_i = rho*_i - rho0;  k_i = alpha_i rho_err_i / dt^2."""
+    for i in prange(x.shape[0]):
+        e = max(rho[i] + dt * _density_rate_i(i, x, v, m, xb, mb, nf, cf, nb, cb, h), rho0) - rho0
+        rho_err[i] = e
+        k[i] = alpha[i] * e / (dt * dt)
+
+
+@njit(parallel=True, fastmath=FAST, cache=True)
+def apply_stiffness(x, m, xb, mb, nf, cf, nb, cb, h, k, dt, v, k_total):
+    """v_i -= dt [sum_j m_j (k_i + k_j) grad W_ij + sum_b m_b k_i grad W_ib];  k_total_i += k_i.
+
+    In place: iteration i reads k of its neighbours and writes v_i, k_total_i only.
+    """
+    for i in prange(x.shape[0]):
+        a0 = 0.0
+        a1 = 0.0
+        a2 = 0.0
+        ki = k[i]
+        for n in range(cf[i]):
+            j = nf[i, n]
+            d0 = x[i, 0] - x[j, 0]
+            d1 = x[i, 1] - x[j, 1]
+            d2 = x[i, 2] - x[j, 2]
+            f = m[j] * (ki + k[j]) * grad_w_factor(np.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
+            a0 += f * d0
+            a1 += f * d1
+            a2 += f * d2
+        for n in range(cb[i]):
+            b = nb[i, n]
+            d0 = x[i, 0] - xb[b, 0]
+            d1 = x[i, 1] - xb[b, 1]
+            d2 = x[i, 2] - xb[b, 2]
+            f = mb[b] * ki * grad_w_factor(np.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
+            a0 += f * d0
+            a1 += f * d1
+            a2 += f * d2
+        v[i, 0] -= dt * a0
+        v[i, 1] -= dt * a1
+        v[i, 2] -= dt * a2
+        k_total[i] += ki
+
+
+@njit(parallel=True, fastmath=FAST, cache=True)
+def xsph(x, v, m, rho, xb, mb, nf, cf, nb, cb, h, zeta, v_out, drho):
+    """XSPH velocity filter [SB12]: v_i <- v_i - zeta sum_j (m_j / rho_j) (v_i - v_j) W_ij.
+
+    Also returns D rho_i/Dt of the input velocities (a free by-product used as PF's
+    divergence error).
+    """
+    for i in prange(x.shape[0]):
+        a0 = 0.0
+        a1 = 0.0
+        a2 = 0.0
+        for n in range(cf[i]):
+            j = nf[i, n]
+            d0 = x[i, 0] - x[j, 0]
+            d1 = x[i, 1] - x[j, 1]
+            d2 = x[i, 2] - x[j, 2]
+            wij = (m[j] / rho[j]) * w(np.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
+            a0 += wij * (v[i, 0] - v[j, 0])
+            a1 += wij * (v[i, 1] - v[j, 1])
+            a2 += wij * (v[i, 2] - v[j, 2])
+        drho[i] = _density_rate_i(i, x, v, m, xb, mb, nf, cf, nb, cb, h)
+        v_out[i, 0] = v[i, 0] - zeta * a0
+        v_out[i, 1] = v[i, 1] - zeta * a1
+        v_out[i, 2] = v[i, 2] - zeta * a2
+
+
+@njit(cache=True)
+def mean(a):
+    """Serial sum / n: the same bits whatever the thread count (loop criteria depend on it)."""
+    s = 0.0
+    for i in range(a.shape[0]):
+        s += a[i]
+    return s / max(a.shape[0], 1)
+
+
+@njit(cache=True)
+def speed_energy(v, m):
+    """(max_i |v_i|, sum_i m_i |v_i|^2 / 2), serially for thread-count independent bits."""
+    vmax2 = 0.0
+    ke = 0.0
+    for i in range(v.shape[0]):
+        s2 = v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1] + v[i, 2] * v[i, 2]
+        vmax2 = max(vmax2, s2)
+        ke += 0.5 * m[i] * s2
+    return np.sqrt(vmax2), ke
+
+
+@njit(cache=True)
+def first_unhealthy(x, v, lo, hi):
+    """Index of the first particle with a non-finite position/velocity or outside [lo, hi], else -1."""
+    for i in range(x.shape[0]):
+        for c in range(3):
+            if not (np.isfinite(x[i, c]) and np.isfinite(v[i, c])):
+                return i
+            if x[i, c] < lo[c] or x[i, c] > hi[c]:
+                return i
+    return -1

@@ -1,0 +1,226 @@
+"""Neighbour search: uniform cell grid, counting sort by cell, fixed-stride neighbour lists.
+
+Particles are binned into cells of size H (the kernel support), sorted by cell with a stable
+counting sort (so the state arrays can be reordered for memory locality), and every query
+particle gathers the candidates of its 3x3x3 block of cells. Cells are numbered
+x-fastest, so the three cells of a row are one contiguous range of the sorted arrays: nine
+ranges per particle instead of 27 cells.
+
+The lists are stored with a fixed stride K per particle (`idx[i, :cnt[i]]`), which keeps
+every later pass a plain gather (`prange` over i, writes to i only). When a particle has
+more than K neighbours the build reports it and the caller grows K and rebuilds.
+
+`brute_force_neighbours` is the O(N M) oracle the tests compare against.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from .errors import NumericalFailure
+
+
+class Grid:
+    """A uniform grid of cubic cells covering [lo, hi] (padded by one cell)."""
+
+    __slots__ = ("origin", "cell", "dims")
+
+    def __init__(self, lo, hi, cell: float):
+        lo = np.asarray(lo, dtype=np.float64) - cell
+        hi = np.asarray(hi, dtype=np.float64) + cell
+        self.cell = float(cell)
+        self.origin = lo
+        self.dims = np.maximum(np.ceil((hi - lo) / cell).astype(np.int64), 1)
+
+    @property
+    def n_cells(self) -> int:
+        return int(np.prod(self.dims))
+
+    def contains(self, lo, hi) -> bool:
+        top = self.origin + self.dims * self.cell
+        return bool(np.all(lo >= self.origin) and np.all(hi < top))
+
+
+@njit(cache=True)
+def cell_ids(x, origin, inv_cell, dims, out):
+    """Linear cell index (x fastest) of every point; points outside are clamped to the edge."""
+    nx, ny, nz = dims[0], dims[1], dims[2]
+    for i in range(x.shape[0]):
+        cx = min(max(int((x[i, 0] - origin[0]) * inv_cell), 0), nx - 1)
+        cy = min(max(int((x[i, 1] - origin[1]) * inv_cell), 0), ny - 1)
+        cz = min(max(int((x[i, 2] - origin[2]) * inv_cell), 0), nz - 1)
+        out[i] = (cz * ny + cy) * nx + cx
+
+
+@njit(cache=True)
+def counting_sort(cells, n_cells, order, cell_start):
+    """Stable counting sort: `order` lists point indices by cell, `cell_start` is the CSR offset."""
+    cell_start[:] = 0
+    for i in range(cells.shape[0]):
+        cell_start[cells[i] + 1] += 1
+    for c in range(n_cells):
+        cell_start[c + 1] += cell_start[c]
+    fill = cell_start[:-1].copy()
+    for i in range(cells.shape[0]):
+        c = cells[i]
+        order[fill[c]] = i
+        fill[c] += 1
+
+
+@njit(parallel=True, cache=True)
+def gather_neighbours(xq, xs, cell_start, origin, inv_cell, dims, radius, same_set, idx, cnt):
+    """For each query point i, the indices j of points xs with |xq_i - xs_j| < radius.
+
+    `xs` must be sorted by cell with `cell_start` its CSR offsets. With `same_set`, i itself is
+    skipped (xq is xs). Writes the first K = idx.shape[1] indices and the true count;
+    returns the largest count so the caller can detect an overflow.
+    """
+    nx, ny, nz = dims[0], dims[1], dims[2]
+    k_max = idx.shape[1]
+    r2 = radius * radius
+    for i in prange(xq.shape[0]):
+        xi0 = xq[i, 0]
+        xi1 = xq[i, 1]
+        xi2 = xq[i, 2]
+        cx = min(max(int((xi0 - origin[0]) * inv_cell), 0), nx - 1)
+        cy = min(max(int((xi1 - origin[1]) * inv_cell), 0), ny - 1)
+        cz = min(max(int((xi2 - origin[2]) * inv_cell), 0), nz - 1)
+        x_lo = max(cx - 1, 0)
+        x_hi = min(cx + 1, nx - 1)
+        n = 0
+        for z in range(max(cz - 1, 0), min(cz + 1, nz - 1) + 1):
+            for y in range(max(cy - 1, 0), min(cy + 1, ny - 1) + 1):
+                row = (z * ny + y) * nx
+                for j in range(cell_start[row + x_lo], cell_start[row + x_hi + 1]):
+                    if same_set and j == i:
+                        continue
+                    d0 = xi0 - xs[j, 0]
+                    d1 = xi1 - xs[j, 1]
+                    d2 = xi2 - xs[j, 2]
+                    if d0 * d0 + d1 * d1 + d2 * d2 < r2:
+                        if n < k_max:
+                            idx[i, n] = j
+                        n += 1
+        cnt[i] = n
+    best = 0
+    for i in range(xq.shape[0]):
+        best = max(best, cnt[i])
+    return best
+
+
+def brute_force_neighbours(xq, xs, radius, same_set):
+    """O(N M) oracle: sorted index lists of points within `radius` (strict)."""
+    out = []
+    for i in range(len(xq)):
+        d2 = np.sum((xs - xq[i]) ** 2, axis=1)
+        j = np.nonzero(d2 < radius * radius)[0]
+        if same_set:
+            j = j[j != i]
+        out.append(np.sort(j))
+    return out
+
+
+class NeighbourLists:
+    """Fluid->fluid and fluid->boundary lists in fixed-stride form (indices into sorted arrays)."""
+
+    __slots__ = ("fluid", "fluid_count", "boundary", "boundary_count")
+
+    def __init__(self, n: int, k_fluid: int, k_boundary: int):
+        self.fluid = np.zeros((n, k_fluid), dtype=np.int32)
+        self.fluid_count = np.zeros(n, dtype=np.int32)
+        self.boundary = np.zeros((n, k_boundary), dtype=np.int32)
+        self.boundary_count = np.zeros(n, dtype=np.int32)
+
+    @property
+    def nbytes(self) -> int:
+        return sum(getattr(self, s).nbytes for s in self.__slots__)
+
+
+class NeighbourSearch:
+    """Owns the grid, the cell sort and the lists; `update` sorts the fluid and rebuilds lists.
+
+    The boundary is static: it is sorted into the grid once (and again only if the grid has to
+    grow because fluid left it), in place through `boundary.reorder`. `update` returns the
+    permutation to apply to the fluid, so the caller reorders every per-particle array with it.
+    """
+
+    # Cells beyond this many per particle mean the fluid blew apart (a runaway particle).
+    MAX_CELLS_PER_PARTICLE = 64
+
+    def __init__(self, support: float, boundary, k_fluid: int = 64, k_boundary: int = 48):
+        self.h = float(support)
+        self.boundary = boundary  # has `.x` and `.reorder(order)`; resorted here when the grid changes
+        self.k_fluid = k_fluid
+        self.k_boundary = k_boundary
+        self.grid: Grid | None = None
+        self.boundary_start = None
+        self.lists: NeighbourLists | None = None
+
+    # -- grid ---------------------------------------------------------------------------------
+    def _fit_grid(self, x_fluid: np.ndarray) -> None:
+        """Make sure the grid covers fluid and boundary; resort the boundary if the grid changed."""
+        lo = x_fluid.min(axis=0) if len(x_fluid) else np.zeros(3)
+        hi = x_fluid.max(axis=0) if len(x_fluid) else np.zeros(3)
+        if self.grid is not None and self.grid.contains(lo, hi):
+            return
+        xb = self.boundary.x
+        if len(xb):
+            lo = np.minimum(lo, xb.min(axis=0))
+            hi = np.maximum(hi, xb.max(axis=0))
+        if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
+            raise NumericalFailure("neighbour search: non-finite particle position")
+        grid = Grid(lo, hi, self.h)
+        limit = self.MAX_CELLS_PER_PARTICLE * (len(x_fluid) + len(xb)) + 1_000_000
+        if grid.n_cells > limit:
+            ext = hi - lo
+            raise NumericalFailure(
+                f"neighbour search: the particles spread over {ext[0]:.3g} x {ext[1]:.3g} x {ext[2]:.3g} m "
+                f"({grid.n_cells:.3g} cells); a particle has run away")
+        self.grid = grid
+        # sort the boundary into the new grid (stable, deterministic)
+        cells = np.empty(len(xb), dtype=np.int64)
+        cell_ids(xb, grid.origin, 1.0 / grid.cell, grid.dims, cells)
+        order = np.empty(len(xb), dtype=np.int64)
+        self.boundary_start = np.empty(grid.n_cells + 1, dtype=np.int64)
+        counting_sort(cells, grid.n_cells, order, self.boundary_start)
+        self.boundary.reorder(order)
+        return True
+
+    # -- public -------------------------------------------------------------------------------
+    def update(self, x_fluid: np.ndarray) -> np.ndarray:
+        """Sort the fluid by cell and rebuild both lists at `x_fluid`.
+
+        Returns `perm`: the caller must apply it to every fluid array (the lists index the
+        permuted order: new[i] = old[perm[i]]).
+        """
+        self._fit_grid(x_fluid)
+        g = self.grid
+        n = len(x_fluid)
+        cells = np.empty(n, dtype=np.int64)
+        cell_ids(x_fluid, g.origin, 1.0 / g.cell, g.dims, cells)
+        perm = np.empty(n, dtype=np.int64)
+        fluid_start = np.empty(g.n_cells + 1, dtype=np.int64)
+        counting_sort(cells, g.n_cells, perm, fluid_start)
+        xs = np.ascontiguousarray(x_fluid[perm])
+        self._build(xs, fluid_start)
+        return perm
+
+    def _build(self, xs, fluid_start):
+        g = self.grid
+        n = len(xs)
+        while True:
+            if self.lists is None or self.lists.fluid.shape != (n, self.k_fluid) \
+                    or self.lists.boundary.shape != (n, self.k_boundary):
+                self.lists = NeighbourLists(n, self.k_fluid, self.k_boundary)
+            lists = self.lists
+            most_f = gather_neighbours(xs, xs, fluid_start, g.origin, 1.0 / g.cell, g.dims, self.h, True,
+                                       lists.fluid, lists.fluid_count)
+            most_b = gather_neighbours(xs, self.boundary.x, self.boundary_start, g.origin, 1.0 / g.cell,
+                                       g.dims, self.h, False, lists.boundary, lists.boundary_count)
+            if most_f <= self.k_fluid and most_b <= self.k_boundary:
+                return
+            # grow the stride (rounded up to a multiple of 16) and rebuild; rare
+            self.k_fluid = max(self.k_fluid, int(math.ceil(most_f * 1.25 / 16) * 16))
+            self.k_boundary = max(self.k_boundary, int(math.ceil(most_b * 1.25 / 16) * 16))

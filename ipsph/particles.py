@@ -1,0 +1,63 @@
+"""Particle state: one structure-of-arrays container for everything that lives across steps.
+
+Positions, velocities, masses and ids, plus any per-particle array a method must keep from
+one step to the next (warm-start stiffness, pressure). Keeping them all here means the
+neighbour search can reorder particles for locality with one `permute`, and a checkpoint is
+simply `arrays()`. Methods keep their per-step scratch arrays to themselves.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+class ParticleState:
+    """Named numpy arrays with a common first dimension (the fluid particles)."""
+
+    def __init__(self, x: np.ndarray, v: np.ndarray, m: np.ndarray, ids: np.ndarray | None = None):
+        n = len(x)
+        self._names: list[str] = []
+        self.add("x", np.ascontiguousarray(x, dtype=np.float64))
+        self.add("v", np.ascontiguousarray(v, dtype=np.float64))
+        self.add("m", np.ascontiguousarray(m, dtype=np.float64))
+        self.add("id", np.arange(n, dtype=np.int64) if ids is None else np.asarray(ids, dtype=np.int64))
+
+    # declared for type checkers; set through add()
+    x: np.ndarray
+    v: np.ndarray
+    m: np.ndarray
+    id: np.ndarray
+
+    @property
+    def n(self) -> int:
+        return len(self.x)
+
+    def add(self, name: str, array: np.ndarray) -> np.ndarray:
+        """Register a per-particle array that must follow the particles when they are reordered."""
+        if len(array) != (len(self.x) if self._names else len(array)):
+            raise ValueError(f"array {name!r} has {len(array)} rows, the state has {len(self.x)}")
+        if name not in self._names:
+            self._names.append(name)
+        setattr(self, name, array)
+        return array
+
+    def zeros(self, name: str, shape=(), dtype=np.float64) -> np.ndarray:
+        return self.add(name, np.zeros((self.n, *shape), dtype=dtype))
+
+    def permute(self, perm: np.ndarray) -> None:
+        """Reorder every registered array by `perm` (new[i] = old[perm[i]])."""
+        for name in self._names:
+            setattr(self, name, np.ascontiguousarray(getattr(self, name)[perm]))
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        return {name: getattr(self, name) for name in self._names}
+
+    def load(self, arrays: dict[str, np.ndarray]) -> None:
+        """Replace the registered arrays (checkpoint restore); names must match exactly."""
+        if set(arrays) != set(self._names):
+            raise ValueError(f"state arrays differ: have {sorted(self._names)}, got {sorted(arrays)}")
+        for name in self._names:
+            setattr(self, name, np.ascontiguousarray(arrays[name]))
+
+    @property
+    def nbytes(self) -> int:
+        return sum(getattr(self, name).nbytes for name in self._names)

@@ -1,0 +1,204 @@
+"""The Python API and the shared time loop: scene -> particles -> method -> steps and frames.
+
+    sim = Simulation.from_scene("scene.toml")         # or a dict, or a Scene
+    sim.run(on_frame=lambda sim, k: ...)              # frames land exactly on k / fps
+    sim.step()                                        # one CFL step
+    sim.positions, sim.velocities, sim.densities, sim.pressures, sim.ids
+
+Time stepping (method.md section 1): one dt per step, from the CFL condition evaluated at the
+end of the previous step, dt = clamp(cfl * 0.4 * d / max|v|, dt_min, dt_max); steps whose CFL
+value fell below dt_min are counted, never hidden. When the next step would cross a frame
+time, the remaining time is spread over the last two steps (no sliver steps).
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .boundary import Boundary
+from .errors import NumericalFailure
+from .methods import METHODS
+from .methods.base import StepReport
+from .methods.sph_passes import first_unhealthy, speed_energy
+from .model import Role, Scene
+from .neighbours import NeighbourSearch
+from .particles import ParticleState
+
+VOLUME_FACTOR = 0.8  # V = 0.8 d^3 (SPlisHSPlasH): the initial lattice starts under-dense
+
+
+@dataclass
+class StepStats(StepReport):
+    """A method's StepReport plus what the time loop adds."""
+    step: int = 0
+    time: float = 0.0
+    max_speed: float = 0.0
+    kinetic_energy: float = 0.0
+    dt_clamped: bool = False
+
+
+class Simulation:
+    """One fluid simulation: particle state, static walls, a method and the clock."""
+
+    def __init__(self, scene: Scene, fluid_x: np.ndarray, fluid_v: np.ndarray, boundary_x: np.ndarray,
+                 fluid_ids: np.ndarray | None = None):
+        self.scene = scene
+        r = scene.particle_radius
+        self.spacing = 2.0 * r
+        self.support = 4.0 * r
+        mass = scene.density0 * VOLUME_FACTOR * self.spacing ** 3
+        self.state = ParticleState(fluid_x, fluid_v, np.full(len(fluid_x), mass), fluid_ids)
+        self.boundary = Boundary(boundary_x, self.support, scene.density0)
+        self.search = NeighbourSearch(self.support, self.boundary)
+        self.method = METHODS[scene.method](scene, self.state, self.boundary, self.search)
+        self.time = 0.0
+        self.steps = 0
+        self.clamped_steps = 0
+        ts = scene.time_step
+        self.dt_min = ts.dt_min
+        self.dt_max = ts.resolved_dt_max(r)
+        self.domain = self._domain(boundary_x)
+        self.method.prepare()
+        vmax, _ = speed_energy(self.state.v, self.state.m)
+        self.dt_next, _ = self._cfl(vmax)
+        if ts.dt_initial is not None:
+            self.dt_next = min(ts.dt_initial, self.dt_max)
+
+    # -- construction -------------------------------------------------------------------------
+    @classmethod
+    def from_scene(cls, scene, overrides=()) -> "Simulation":
+        """Build from a Scene, a scene file path or a scene dict; samples meshes into particles."""
+        from .scene import load_scene, scene_from_dict
+        if isinstance(scene, (str, Path)):
+            scene = load_scene(Path(scene), list(overrides))
+        elif isinstance(scene, dict):
+            scene = scene_from_dict(scene, Path.cwd(), "scene")
+        from .sampling import sample_scene
+        fluid_x, fluid_v, boundary_x = sample_scene(scene)
+        return cls(scene, fluid_x, fluid_v, boundary_x)
+
+    def _domain(self, boundary_x):
+        """Fluid leaving the containers' bounds (plus one support radius) has escaped."""
+        if not any(b.role == Role.CONTAINER for b in self.scene.boundaries) or len(boundary_x) == 0:
+            return np.full(3, -np.inf), np.full(3, np.inf)
+        return boundary_x.min(axis=0) - self.support, boundary_x.max(axis=0) + self.support
+
+    # -- clock --------------------------------------------------------------------------------
+    def _cfl(self, vmax: float) -> tuple[float, bool]:
+        """dt = clamp(cfl * 0.4 * d / max|v|, dt_min, dt_max); True when clamped up to dt_min."""
+        raw = self.scene.time_step.cfl_factor * 0.4 * self.spacing / vmax if vmax > 0 else math.inf
+        return min(max(raw, self.dt_min), self.dt_max), raw < self.dt_min
+
+    def step(self, dt: float | None = None) -> StepStats:
+        """Advance one step of `dt` (default: the CFL step) and check the state's health."""
+        dt = self.dt_next if dt is None else float(dt)
+        t0 = time.perf_counter()
+        rep = self.method.step(dt)
+        self.time += dt
+        self.steps += 1
+        st = self.state
+        bad = first_unhealthy(st.x, st.v, self.domain[0], self.domain[1])
+        if bad >= 0:
+            self._fail(bad)
+        vmax, ke = speed_energy(st.v, st.m)
+        self.dt_next, clamped = self._cfl(vmax)
+        self.clamped_steps += clamped
+        rep.timings["step"] = time.perf_counter() - t0
+        return StepStats(**vars(rep), step=self.steps, time=self.time, max_speed=vmax, kinetic_energy=ke,
+                         dt_clamped=clamped)
+
+    def _fail(self, i: int):
+        x, v = self.state.x[i], self.state.v[i]
+        pid = int(self.state.id[i])
+        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(v))):
+            what = f"non-finite {'position' if not np.all(np.isfinite(x)) else 'velocity'}"
+        else:
+            what = f"left the domain at x = ({x[0]:.4g}, {x[1]:.4g}, {x[2]:.4g}) m"
+        raise NumericalFailure(
+            f"numerical failure at step {self.steps}, t = {self.time:.6g} s: particle id {pid} {what} "
+            f"(|v| = {np.linalg.norm(v):.4g} m/s); try a smaller time step (time_step.dt_max) or cfl_factor")
+
+    def _landing_dt(self, t_target: float) -> tuple[float, bool]:
+        """The next dt towards t_target: the CFL dt, or half / all of what remains (no slivers)."""
+        rem = t_target - self.time
+        dt = self.dt_next
+        if rem <= dt * (1.0 + 1e-9):
+            return rem, True
+        return (0.5 * rem if rem < 2.0 * dt else dt), False
+
+    def _step_towards(self, t_target: float, on_step) -> None:
+        dt, last = self._landing_dt(t_target)
+        stats = self.step(dt)
+        if last:
+            self.time = stats.time = t_target
+        if on_step is not None:
+            on_step(stats)
+
+    def _before(self, t_target: float) -> bool:
+        return t_target - self.time > 1e-12 * max(1.0, abs(t_target))
+
+    def advance_to(self, t_target: float, on_step=None) -> None:
+        """Step until `time == t_target` exactly: the last two steps share the remaining time."""
+        while self._before(t_target):
+            self._step_towards(t_target, on_step)
+
+    def run(self, end_time: float | None = None, fps: float | None = None, on_frame=None, on_step=None,
+            every_step: bool | None = None) -> None:
+        """Run to `end_time`, calling on_frame(sim, k) at t = k / fps (k = 0 first) or after every step."""
+        out = self.scene.output
+        end_time = self.scene.end_time if end_time is None else end_time
+        fps = out.fps if fps is None else fps
+        every_step = out.every_step if every_step is None else every_step
+        frame = int(round(self.time * fps)) if not every_step else self.steps
+        if on_frame is not None and self.time == 0.0:
+            on_frame(self, frame)
+        if every_step:
+            while self._before(end_time):
+                self._step_towards(end_time, on_step)
+                if on_frame is not None:
+                    on_frame(self, self.steps)
+            return
+        n_frames = int(math.floor(end_time * fps + 1e-9))
+        while frame < n_frames:
+            frame += 1
+            self.advance_to(frame / fps, on_step)
+            if on_frame is not None:
+                on_frame(self, frame)
+        self.advance_to(end_time, on_step)
+
+    # -- particle arrays (current order; `ids` maps them to the initial numbering) -------------
+    @property
+    def positions(self) -> np.ndarray:
+        return self.state.x
+
+    @property
+    def velocities(self) -> np.ndarray:
+        return self.state.v
+
+    @property
+    def densities(self) -> np.ndarray:
+        return self.method.density()
+
+    @property
+    def pressures(self) -> np.ndarray:
+        return self.state.pressure
+
+    @property
+    def masses(self) -> np.ndarray:
+        return self.state.m
+
+    @property
+    def ids(self) -> np.ndarray:
+        return self.state.id
+
+    @property
+    def n_fluid(self) -> int:
+        return self.state.n
+
+    @property
+    def n_boundary(self) -> int:
+        return self.boundary.n
