@@ -1,0 +1,482 @@
+"""Geometry -> particles: fluid lattices, boundary surface samples, overlap removal, a disk cache.
+
+Conventions (r particle radius, d = 2r):
+- Fluid box (SPlisHSPlasH FluidBlocks, denseMode 0): the scale S is applied to the corners, per axis
+  n = round(extent / d) - 1 particles at min + d + i d, then x' = R p + t for every lattice point p.
+- Fluid mesh: a cubic lattice of spacing d centred on the transformed mesh's bounding box,
+  n = round(extent / d) points per axis (so the outer layers sit about d/2 inside the box faces and
+  a flat face aligned with the box is not over-counted), kept where `meshes.inside_mesh` says
+  inside. Count · d³ then estimates the mesh volume without bias.
+- Boundary box (also a mesh that is an axis-aligned box after scaling, e.g. UnitBox.obj): a regular
+  grid per face, n = ceil(edge / 1.5r) intervals per edge, edge and corner nodes once.
+- Boundary mesh: candidates = feature-edge corners, then feature edges (30°) sampled every r/5,
+  then face samples of vtkPolyDataPointSampler (Distance r/5); a greedy pass in that priority order
+  keeps a candidate when no kept sample lies within r (the Poisson-disk rule of
+  vtkPoissonDiskSampler, seeded with the edges, which that filter cannot take). The result has
+  nearest-neighbour spacing >= r and leaves no candidate farther than r from a sample.
+"""
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+
+import numba as nb
+import numpy as np
+
+from ipsph import meshes, model
+from ipsph.errors import ConfigError
+
+SAMPLER_VERSION = "ipsph-sampling-1"
+BOUNDARY_SPACING_FACTOR = 1.5     # box-grid spacing <= 1.5 r (method.md section 1)
+POISSON_RADIUS_FACTOR = 1.0       # general meshes: samples at least r apart, none missing beyond r
+CANDIDATE_SPACING_FACTOR = 0.2    # candidate density r/5 (ecosystem.md)
+FEATURE_ANGLE_DEG = 30.0
+# Fluid particles closer than d = 2r to a wall particle are removed: the first lattice layer sits
+# d from the walls (method.md: particles at r from a wall make DFSPH/IPSPH blow up). The factor
+# slightly below 1 keeps a layer that is exactly d away despite rounding.
+OVERLAP_DISTANCE_FACTOR = 2.0 * (1.0 - 1e-6)
+
+
+def default_overlap_distance(radius: float) -> float:
+    """min_dist for remove_overlaps: d = 2r (less a rounding tolerance)."""
+    return OVERLAP_DISTANCE_FACTOR * radius
+
+
+# ----------------------------------------------------------------------------- spec helpers
+def _check_radius(radius: float) -> float:
+    r = float(radius)
+    if not (math.isfinite(r) and r > 0.0):
+        raise ConfigError(f"particle_radius = {radius!r}: must be a positive finite length in metres")
+    return r
+
+
+def _scaled_box(spec) -> tuple[np.ndarray, np.ndarray]:
+    """The box corners with the spec's scale applied (before rotation and translation)."""
+    if spec.box_min is None or spec.box_max is None:
+        raise ConfigError(f"{spec.name}: shape 'box' needs box_min and box_max")
+    s = np.asarray(spec.transform.scale, dtype=np.float64)
+    a = np.asarray(spec.box_min, dtype=np.float64) * s
+    b = np.asarray(spec.box_max, dtype=np.float64) * s
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    if not np.all(hi > lo):
+        raise ConfigError(f"{spec.name}: box_min {tuple(spec.box_min)} and box_max {tuple(spec.box_max)} "
+                          f"(scale {tuple(spec.transform.scale)}) enclose no volume; box_max must exceed box_min")
+    return lo, hi
+
+
+def _rigid(t: model.Transform) -> model.Transform:
+    """The rotation and translation of t, without its scale."""
+    return model.Transform(translate=t.translate, rotate_axis=t.rotate_axis, rotate_deg=t.rotate_deg)
+
+
+def _mesh_path(spec) -> Path:
+    if spec.mesh is None:
+        raise ConfigError(f"{spec.name}: shape 'mesh' needs a mesh file")
+    return Path(spec.mesh)
+
+
+def _shape(spec) -> str:
+    if spec.shape not in ("box", "mesh"):
+        raise ConfigError(f"{spec.name}: shape = {spec.shape!r}; use 'box' or 'mesh'")
+    return spec.shape
+
+
+_PREPARED: dict = {}
+
+
+def _prepared(path: Path, transform: model.Transform, *, need_closed: bool, allow_open: bool):
+    """meshes.prepare_mesh, memoised in-process on (file identity, transform, flags)."""
+    p = path.expanduser().resolve()
+    try:
+        st = p.stat()
+        ident = (str(p), st.st_mtime_ns, st.st_size)
+    except OSError:
+        ident = (str(p), None, None)
+    key = (ident, transform, need_closed, allow_open)
+    if key not in _PREPARED:
+        if len(_PREPARED) > 16:
+            _PREPARED.clear()
+        _PREPARED[key] = meshes.prepare_mesh(path, transform, need_closed=need_closed, allow_open=allow_open)
+    return _PREPARED[key]
+
+
+# ----------------------------------------------------------------------------- fluid
+def _fluid_box_counts(lo: np.ndarray, hi: np.ndarray, d: float) -> np.ndarray:
+    # floor(x + 0.5 + eps): round half up, robust to 19.999999 and 13.5 alike
+    return np.maximum(np.floor((hi - lo) / d + 0.5 + 1e-9).astype(np.int64) - 1, 0)
+
+
+def _grid(origin: np.ndarray, counts: np.ndarray, d: float) -> np.ndarray:
+    axes = [origin[k] + d * np.arange(counts[k], dtype=np.float64) for k in range(3)]
+    gx, gy, gz = np.meshgrid(*axes, indexing="ij")
+    return np.ascontiguousarray(np.stack([gx.ravel(), gy.ravel(), gz.ravel()], axis=1))
+
+
+def _mesh_lattice(bounds, d: float) -> tuple[np.ndarray, np.ndarray]:
+    lo = np.array(bounds[0::2], dtype=np.float64)
+    hi = np.array(bounds[1::2], dtype=np.float64)
+    counts = np.maximum(np.floor((hi - lo) / d + 0.5 + 1e-9).astype(np.int64), 1)
+    origin = 0.5 * (lo + hi) - 0.5 * d * (counts - 1)
+    return origin, counts
+
+
+def _sample_fluid(spec: model.FluidSpec, r: float) -> np.ndarray:
+    d = 2.0 * r
+    if _shape(spec) == "box":
+        lo, hi = _scaled_box(spec)
+        counts = _fluid_box_counts(lo, hi, d)
+        if np.any(counts == 0):
+            return np.empty((0, 3), dtype=np.float64)
+        return meshes.transform_points(_grid(lo + d, counts, d), _rigid(spec.transform))
+    mesh, report = _prepared(_mesh_path(spec), spec.transform, need_closed=True,
+                             allow_open=spec.allow_open_mesh)
+    origin, counts = _mesh_lattice(report.bounds, d)
+    lattice = _grid(origin, counts, d)
+    inside = meshes.inside_mesh(lattice, mesh, d, closed=report.closed)
+    return np.ascontiguousarray(lattice[inside])
+
+
+def fluid_positions(spec: model.FluidSpec, radius: float, *, cache: bool = True) -> np.ndarray:
+    """(N,3) float64 fluid particle positions for a box or mesh fluid body (module docstring)."""
+    r = _check_radius(radius)
+    return _cached("fluid", spec, r, cache, lambda: _sample_fluid(spec, r))
+
+
+def estimate_fluid_count(spec: model.FluidSpec, radius: float) -> int:
+    """Particle count before sampling: exact for boxes; volume / d³ for closed meshes (the lattice
+    count estimates the volume to a few percent); the bounding-box lattice (an upper bound) for open ones."""
+    r = _check_radius(radius)
+    d = 2.0 * r
+    if _shape(spec) == "box":
+        lo, hi = _scaled_box(spec)
+        return int(np.prod(_fluid_box_counts(lo, hi, d)))
+    _, report = _prepared(_mesh_path(spec), spec.transform, need_closed=True, allow_open=spec.allow_open_mesh)
+    if report.closed:
+        return int(round(report.volume / d**3))
+    return int(np.prod(_mesh_lattice(report.bounds, d)[1]))
+
+
+# ----------------------------------------------------------------------------- boundary
+def _box_surface_grid(lo: np.ndarray, hi: np.ndarray, max_spacing: float) -> np.ndarray:
+    """Nodes of a regular grid on the 6 faces: n = ceil(edge / max_spacing) intervals; shared nodes once."""
+    ext = hi - lo
+    n = np.maximum(np.ceil(ext / max_spacing - 1e-9).astype(np.int64), 1)
+    ax = [lo[k] + ext[k] * (np.arange(n[k] + 1, dtype=np.float64) / n[k]) for k in range(3)]
+    ax[0][-1], ax[1][-1], ax[2][-1] = hi  # exact far faces
+    inner = [a[1:-1] for a in ax]
+
+    def block(xs, ys, zs):
+        gx, gy, gz = np.meshgrid(xs, ys, zs, indexing="ij")
+        return np.stack([gx.ravel(), gy.ravel(), gz.ravel()], axis=1)
+
+    parts = [block(ax[0][[0, -1]], ax[1], ax[2]),          # x faces, with all their edges
+             block(inner[0], ax[1][[0, -1]], ax[2]),       # y faces, x-interior
+             block(inner[0], inner[1], ax[2][[0, -1]])]    # z faces, x- and y-interior
+    return np.ascontiguousarray(np.concatenate(parts))
+
+
+def _feature_candidates(mesh, r: float) -> tuple[np.ndarray, np.ndarray]:
+    """(corners, dense edge samples) of the feature edges (30°, boundary and non-manifold edges)."""
+    fe = mesh.extract_feature_edges(feature_angle=FEATURE_ANGLE_DEG, boundary_edges=True,
+                                    non_manifold_edges=True, feature_edges=True, manifold_edges=False)
+    if fe.n_cells == 0:
+        return np.empty((0, 3)), np.empty((0, 3))
+    pts = np.asarray(fe.points, dtype=np.float64)
+    seg = np.asarray(fe.lines).reshape(-1, 3)[:, 1:]
+    degree = np.bincount(seg.ravel(), minlength=len(pts))
+    corners = pts[(degree != 2) & (degree > 0)]
+    a, b = pts[seg[:, 0]], pts[seg[:, 1]]
+    length = np.linalg.norm(b - a, axis=1)
+    k = np.maximum(np.ceil(length / (CANDIDATE_SPACING_FACTOR * r)).astype(np.int64), 1)
+    owner = np.repeat(np.arange(len(seg)), k)
+    step = np.arange(len(owner)) - np.repeat(np.cumsum(k) - k, k)     # 0..k-1 within a segment
+    frac = (step / np.repeat(k, k))[:, None]
+    dense = a[owner] + frac * (b - a)[owner]                             # includes each start vertex
+    return np.ascontiguousarray(corners), np.ascontiguousarray(dense)
+
+
+def _face_candidates(mesh, r: float) -> np.ndarray:
+    from vtkmodules.vtkFiltersModeling import vtkPolyDataPointSampler
+
+    sampler = vtkPolyDataPointSampler()
+    sampler.SetInputData(mesh)
+    sampler.SetDistance(CANDIDATE_SPACING_FACTOR * r)
+    sampler.SetPointGenerationModeToRegular()
+    sampler.GenerateVertexPointsOn()
+    sampler.GenerateEdgePointsOn()
+    sampler.GenerateInteriorPointsOn()
+    sampler.Update()
+    import pyvista as pv
+
+    return np.ascontiguousarray(pv.wrap(sampler.GetOutput()).points, dtype=np.float64)
+
+
+def poisson_filter(candidates: np.ndarray, radius: float) -> np.ndarray:
+    """Indices of a maximal subset with pairwise distance >= radius, taken greedily in input order
+    (earlier candidates win). Every rejected candidate lies within radius of a kept one."""
+    c = np.ascontiguousarray(candidates, dtype=np.float64)
+    if len(c) == 0:
+        return np.empty(0, dtype=np.int64)
+    cell_of, nbr = _cell_table(c, radius)
+    keep = np.zeros(len(c), dtype=np.bool_)
+    overflow = np.zeros(1, dtype=np.int64)
+    _greedy_kernel(c, cell_of, nbr, radius * radius, 16, keep, overflow)
+    if overflow[0]:
+        raise RuntimeError("poisson_filter: cell slot overflow (more than 16 separated points in a cell)")
+    return np.flatnonzero(keep)
+
+
+def _cell_table(points: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
+    """Occupied cells of size h: (cell id per point, (ncells, 27) neighbour cell ids or -1)."""
+    lo = points.min(axis=0) - h
+    ijk = np.floor((points - lo) / h).astype(np.int64)
+    dims = ijk.max(axis=0) + 2
+    key = (ijk[:, 0] * dims[1] + ijk[:, 1]) * dims[2] + ijk[:, 2]
+    uniq, inv = np.unique(key, return_inverse=True)
+    ci = np.stack([uniq // (dims[1] * dims[2]), (uniq // dims[2]) % dims[1], uniq % dims[2]], axis=1)
+    off = np.array([(a, b, c) for a in (-1, 0, 1) for b in (-1, 0, 1) for c in (-1, 0, 1)], dtype=np.int64)
+    nb_ijk = ci[:, None, :] + off[None, :, :]
+    nb_key = (nb_ijk[..., 0] * dims[1] + nb_ijk[..., 1]) * dims[2] + nb_ijk[..., 2]
+    pos = np.clip(np.searchsorted(uniq, nb_key), 0, len(uniq) - 1)
+    valid = (uniq[pos] == nb_key) & np.all((nb_ijk >= 0) & (nb_ijk < dims), axis=2)
+    return inv.ravel().astype(np.int64), np.where(valid, pos, -1).astype(np.int64)
+
+
+@nb.njit(cache=True)
+def _greedy_kernel(points, cell_of, nbr, r2, cap, keep, overflow):
+    """Serial greedy Poisson-disk selection: keep_i = no kept j < i with |x_i - x_j|² < r2."""
+    ncell = nbr.shape[0]
+    slots = np.full((ncell, cap), -1, dtype=np.int64)
+    count = np.zeros(ncell, dtype=np.int64)
+    for i in range(points.shape[0]):
+        ok = True
+        for q in range(27):
+            c = nbr[cell_of[i], q]
+            if c < 0:
+                continue
+            for s in range(count[c]):
+                j = slots[c, s]
+                dx = points[i, 0] - points[j, 0]
+                dy = points[i, 1] - points[j, 1]
+                dz = points[i, 2] - points[j, 2]
+                if dx * dx + dy * dy + dz * dz < r2:
+                    ok = False
+                    break
+            if not ok:
+                break
+        if ok:
+            c = cell_of[i]
+            if count[c] >= cap:
+                overflow[0] = 1
+                return
+            slots[c, count[c]] = i
+            count[c] += 1
+            keep[i] = True
+
+
+def _sample_general_surface(mesh, r: float) -> np.ndarray:
+    corners, edges = _feature_candidates(mesh, r)
+    faces = _face_candidates(mesh, r)
+    cand = np.concatenate([corners, edges, faces])
+    return np.ascontiguousarray(cand[poisson_filter(cand, POISSON_RADIUS_FACTOR * r)])
+
+
+def _sample_boundary(spec: model.BoundarySpec, r: float) -> np.ndarray:
+    spacing = BOUNDARY_SPACING_FACTOR * r
+    if _shape(spec) == "box":
+        lo, hi = _scaled_box(spec)
+        return meshes.transform_points(_box_surface_grid(lo, hi, spacing), _rigid(spec.transform))
+    scaled, _ = _prepared(_mesh_path(spec), model.Transform(scale=spec.transform.scale),
+                          need_closed=False, allow_open=True)
+    box = meshes.aligned_box(scaled)
+    if box is not None:
+        return meshes.transform_points(_box_surface_grid(box[0], box[1], spacing), _rigid(spec.transform))
+    mesh, _ = _prepared(_mesh_path(spec), spec.transform, need_closed=False, allow_open=True)
+    return _sample_general_surface(mesh, r)
+
+
+def boundary_positions(spec: model.BoundarySpec, radius: float, *, cache: bool = True) -> np.ndarray:
+    """(M,3) float64 wall particles on the surface of a box or mesh boundary (module docstring)."""
+    r = _check_radius(radius)
+    return _cached("boundary", spec, r, cache, lambda: _sample_boundary(spec, r))
+
+
+def boundary_surface(spec: model.BoundarySpec) -> "meshes.pv.PolyData":
+    """The transformed wall surface as triangles (for rendering)."""
+    if _shape(spec) == "box":
+        lo, hi = _scaled_box(spec)
+        return meshes.transform_mesh(meshes.box_mesh(tuple(lo), tuple(hi)), _rigid(spec.transform))
+    return _prepared(_mesh_path(spec), spec.transform, need_closed=False, allow_open=True)[0]
+
+
+# ----------------------------------------------------------------------------- overlaps
+def _inside_boundary(points: np.ndarray, spec: model.BoundarySpec, r: float) -> np.ndarray:
+    if _shape(spec) == "box":
+        lo, hi = _scaled_box(spec)
+        local = meshes.inverse_transform_points(points, _rigid(spec.transform))
+        return np.all((local > lo) & (local < hi), axis=1)
+    mesh, report = _prepared(_mesh_path(spec), spec.transform, need_closed=False, allow_open=True)
+    return meshes.inside_mesh(points, mesh, 2.0 * r, closed=report.closed)
+
+
+def solid_mask(points: np.ndarray, boundaries: Sequence[model.BoundarySpec], radius: float) -> np.ndarray:
+    """True where a point is inside no obstacle and, when there are containers, inside at least one."""
+    r = _check_radius(radius)
+    p = np.ascontiguousarray(np.asarray(points, dtype=np.float64).reshape(-1, 3))
+    keep = np.ones(len(p), dtype=bool)
+    in_container = np.zeros(len(p), dtype=bool)
+    has_container = False
+    for spec in boundaries:
+        inside = _inside_boundary(p, spec, r)
+        if spec.role == model.Role.OBSTACLE:
+            keep &= ~inside
+        else:
+            has_container = True
+            in_container |= inside
+    return keep & in_container if has_container else keep
+
+
+def remove_overlaps(fluid: np.ndarray, boundary_points: np.ndarray, min_dist: float, *,
+                    boundaries: Sequence[model.BoundarySpec] = (), radius: float | None = None
+                    ) -> tuple[np.ndarray, int]:
+    """(kept mask, removed count): drop fluid particles closer than min_dist to a wall particle
+    (use default_overlap_distance(r) = d) and, given boundaries and radius, those solid_mask rejects."""
+    f = np.ascontiguousarray(np.asarray(fluid, dtype=np.float64).reshape(-1, 3))
+    kept = nearest_distance(f, boundary_points, min_dist) >= min_dist
+    if boundaries:
+        if radius is None:
+            raise ConfigError("remove_overlaps: radius is needed with boundaries")
+        kept &= solid_mask(f, boundaries, radius)
+    return kept, int(len(f) - np.count_nonzero(kept))
+
+
+def nearest_distance(query: np.ndarray, points: np.ndarray, cutoff: float, *, exclude_self: bool = False
+                     ) -> np.ndarray:
+    """Distance from each query point to its nearest point (inf when none is closer than cutoff).
+    exclude_self: query is points, each point's own index is skipped (nearest-neighbour spacing)."""
+    q = np.ascontiguousarray(np.asarray(query, dtype=np.float64).reshape(-1, 3))
+    p = np.ascontiguousarray(np.asarray(points, dtype=np.float64).reshape(-1, 3))
+    out = np.full(len(q), np.inf)
+    if len(q) == 0 or len(p) == 0:
+        return out
+    h = float(cutoff)
+    lo = np.minimum(p.min(axis=0), q.min(axis=0)) - h
+    ijk = np.floor((p - lo) / h).astype(np.int64)
+    dims = np.maximum(np.floor((np.maximum(p.max(axis=0), q.max(axis=0)) - lo) / h).astype(np.int64) + 2, 1)
+    key = (ijk[:, 0] * dims[1] + ijk[:, 1]) * dims[2] + ijk[:, 2]
+    order = np.argsort(key, kind="stable")
+    skey = key[order]
+    _nearest_kernel(q, p[order], order, skey, lo, h, dims, exclude_self, out)
+    return out
+
+
+@nb.njit(parallel=True, cache=True)
+def _nearest_kernel(query, sorted_pts, sorted_ids, sorted_keys, lo, h, dims, exclude_self, out):
+    """out_i = min_j |q_i − p_j| over the 27 cells around q_i, when below h (else left as is)."""
+    for i in nb.prange(query.shape[0]):
+        ci = int(math.floor((query[i, 0] - lo[0]) / h))
+        cj = int(math.floor((query[i, 1] - lo[1]) / h))
+        ck = int(math.floor((query[i, 2] - lo[2]) / h))
+        best = h * h
+        for a in range(ci - 1, ci + 2):
+            if a < 0 or a >= dims[0]:
+                continue
+            for b in range(cj - 1, cj + 2):
+                if b < 0 or b >= dims[1]:
+                    continue
+                for c in range(ck - 1, ck + 2):
+                    if c < 0 or c >= dims[2]:
+                        continue
+                    k = (a * dims[1] + b) * dims[2] + c
+                    s = np.searchsorted(sorted_keys, k)
+                    while s < sorted_keys.shape[0] and sorted_keys[s] == k:
+                        if not (exclude_self and sorted_ids[s] == i):
+                            dx = query[i, 0] - sorted_pts[s, 0]
+                            dy = query[i, 1] - sorted_pts[s, 1]
+                            dz = query[i, 2] - sorted_pts[s, 2]
+                            dd = dx * dx + dy * dy + dz * dz
+                            if dd < best:
+                                best = dd
+                        s += 1
+        if best < h * h:
+            out[i] = math.sqrt(best)
+
+
+# ----------------------------------------------------------------------------- disk cache
+def cache_dir() -> Path:
+    """$IPSPH_CACHE_DIR, else ~/.cache/ipsph."""
+    env = os.environ.get("IPSPH_CACHE_DIR")
+    return Path(env).expanduser() if env else Path.home() / ".cache" / "ipsph"
+
+
+def cache_key(kind: str, spec, radius: float) -> str:
+    """sha256 over kind, sampler version, radius, geometry (box corners or mesh bytes), transform, flags."""
+    h = hashlib.sha256()
+
+    def put(*items):
+        for it in items:
+            h.update(repr(it).encode())
+            h.update(b"\0")
+
+    t = spec.transform
+    put(SAMPLER_VERSION, kind, float(radius).hex(), spec.shape,
+        tuple(float(v).hex() for v in t.translate), tuple(float(v).hex() for v in t.scale),
+        tuple(float(v).hex() for v in t.rotate_axis), float(t.rotate_deg).hex(),
+        getattr(spec, "allow_open_mesh", None))
+    if spec.shape == "box":
+        put(tuple(float(v).hex() for v in spec.box_min), tuple(float(v).hex() for v in spec.box_max))
+    else:
+        path = _mesh_path(spec).expanduser().resolve()
+        put(path.suffix.lower())
+        try:
+            h.update(hashlib.sha256(path.read_bytes()).digest())
+        except OSError:
+            put("unreadable", str(path))  # the sampler itself raises MeshError
+    return h.hexdigest()
+
+
+def _cache_read(path: Path) -> np.ndarray | None:
+    try:
+        arr = np.load(path, allow_pickle=False)
+    except Exception:  # noqa: BLE001 - missing or unreadable: resample
+        return None
+    if arr.dtype != np.float64 or arr.ndim != 2 or arr.shape[1] != 3 or not np.all(np.isfinite(arr)):
+        return None
+    return np.ascontiguousarray(arr)
+
+
+def _cache_write(path: Path, arr: np.ndarray) -> None:
+    """Best effort: temp file + atomic rename, so a reader never sees a partial file."""
+    tmp = None
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=path.stem, suffix=".tmp", dir=path.parent)
+        with os.fdopen(fd, "wb") as fh:
+            np.save(fh, arr, allow_pickle=False)
+        os.replace(tmp, path)
+        tmp = None
+    except Exception:  # noqa: BLE001 - a cache that cannot be written only costs time
+        pass
+    finally:
+        if tmp is not None:
+            try:
+                os.unlink(tmp)
+            except OSError:
+                pass
+
+
+def _cached(kind: str, spec, r: float, use_cache: bool, sample) -> np.ndarray:
+    _shape(spec)
+    if not use_cache:
+        return sample()
+    path = cache_dir() / f"{kind}-{cache_key(kind, spec, r)}.npy"
+    hit = _cache_read(path)
+    if hit is not None:
+        return hit
+    arr = np.ascontiguousarray(sample(), dtype=np.float64)
+    _cache_write(path, arr)
+    return arr
