@@ -1,0 +1,205 @@
+"""SPlisHSPlasH JSON scenes: the 7 stock scenes import with the right lattices, methods and
+solver settings; unsupported keys are warned about, unsupported physics refused."""
+from __future__ import annotations
+
+import json
+import math
+import re
+from pathlib import Path
+
+import pytest
+
+from ipsph.errors import ConfigError
+from ipsph.model import Method, Role, Transform
+from ipsph.scene import load_scene, scene_from_dict, scene_to_dict
+from ipsph.splishsplash import import_scene
+
+ANCHORS = Path(__file__).resolve().parents[2] / "shared" / "anchors" / "splishsplash"
+needs_anchors = pytest.mark.skipif(
+    not (ANCHORS / "Scenes").is_dir(),
+    reason=f"SPlisHSPlasH stock scenes not found at {ANCHORS} (shared anchors are not part of "
+           f"the repository)")
+
+# Fluid particle counts SPlisHSPlasH itself creates for the stock scenes (method.md section 6).
+STOCK = {
+    "Scenes/DamBreakModel.json": ("dfsph", 6_859),
+    "Scenes/DoubleDamBreak.json": ("dfsph", 4_732),
+    "Scenes/DamBreakModelDragons.json": ("dfsph", 14_079),
+    "Scenes/CompressibleSPH_PF.json": ("pf", 6_750),
+    "Scenes_v2.0.0/DamBreakModel.json": ("dfsph", 6_859),
+    "Scenes_v2.0.0/DoubleDamBreak.json": ("dfsph", 4_732),
+    "Scenes_v2.0.0/DamBreakModelDragons.json": ("dfsph", 14_079),
+}
+
+
+def c_round(x: float) -> int:
+    """C's round(): halves away from zero (SPlisHSPlasH), unlike Python's round()."""
+    return int(math.floor(x + 0.5)) if x >= 0 else -int(math.floor(-x + 0.5))
+
+
+def lattice(f, r: float) -> int:
+    """FluidBlocks rule, SimulatorBase::createFluidBlocks: prod(round((max - min) / 2r) - 1)."""
+    return math.prod(c_round((hi - lo) / (2 * r)) - 1 for lo, hi in zip(f.box_min, f.box_max))
+
+
+@needs_anchors
+@pytest.mark.parametrize("rel", sorted(STOCK))
+def test_stock_scenes_import(rel):
+    method, count = STOCK[rel]
+    s = load_scene(ANCHORS / rel)
+    assert s.method == Method(method)
+    assert s.particle_radius == 0.025 and s.density0 == 1000.0
+    assert s.gravity == (0.0, -9.81, 0.0)
+    assert all(f.shape == "box" and f.transform == Transform() for f in s.fluids)
+    assert sum(lattice(f, s.particle_radius) for f in s.fluids) == count
+    assert s.time_step.dt_max == 0.005 and s.time_step.dt_min == 1e-4  # SPlisHSPlasH's bounds
+    assert s.end_time == 2.0  # no stopAt in the stock scenes
+    unit_box = (ANCHORS / "models" / "UnitBox.obj").resolve()
+    assert s.boundaries[0].mesh == unit_box and s.boundaries[0].role == Role.CONTAINER
+    assert len(s.warnings) == 1 and "\n" not in s.warnings[0]
+    # the imported scene survives the dict form (what run.json records and --set edits)
+    assert scene_from_dict(scene_to_dict(s)) == s
+
+
+@needs_anchors
+def test_current_layout_solver_blocks_are_mapped():
+    s = load_scene(ANCHORS / "Scenes/DamBreakModel.json")
+    sv = s.solver
+    assert sv.density_error_pct == 0.05  # the stock 0.05 %, not ipsph's 0.01 % default
+    assert (sv.density_min_iterations, sv.density_max_iterations) == (2, 100)
+    assert (sv.divergence_error_pct, sv.divergence_max_iterations) == (0.1, 100)
+    assert sv.divergence_solve is True
+    assert s.time_step.dt_initial == 0.005 and s.time_step.cfl_factor == 1.0
+    assert s.viscosity == 0.01
+    w = s.warnings[0]
+    assert "numberOfStepsPerRenderUpdate" in w and "particleAttributes" in w
+    assert "boundaryHandlingMethod=2 (ipsph always uses Akinci et al. 2012" in w
+    assert "mapResolution" in w and "RigidBodies[0].color" in w
+    assert "viscosityMethod=1 (Standard) is not XSPH: its viscosity 0.01 is used as the XSPH" in w
+
+
+@needs_anchors
+def test_fluid_block_translation_and_scale():
+    # DamBreakModelDragons: start [-0.5, 0, -0.5], end [0.5, 1, 0.5], translation [-2.45, 0, 0],
+    # scale [1, 2, 1] -> corner' = scale * corner + translation (SPlisHSPlasH SceneLoader)
+    s = load_scene(ANCHORS / "Scenes/DamBreakModelDragons.json")
+    f = s.fluids[0]
+    assert f.box_min == pytest.approx((-2.95, 0.0, -0.5), abs=1e-12)
+    assert f.box_max == pytest.approx((-1.95, 2.0, 0.5), abs=1e-12)
+    box, dragon1, dragon2 = s.boundaries
+    assert box.transform == Transform(translate=(0.0, 2.0, 0.0), scale=(6.0, 4.0, 3.0))
+    assert dragon1.role == dragon2.role == Role.OBSTACLE
+    assert dragon1.mesh == (ANCHORS / "models" / "Dragon_50k.obj").resolve()
+    assert dragon2.transform.translate == (1.5, 0.0, 0.75)
+
+
+@needs_anchors
+def test_pf_scene_maps_the_projective_fluids_block_and_velocities():
+    s = load_scene(ANCHORS / "Scenes/CompressibleSPH_PF.json")
+    assert s.solver.pf_stiffness == 25_000.0
+    assert (s.solver.ipsph_min_passes, s.solver.ipsph_max_passes) == (2, 100)
+    assert s.solver.ipsph_density_error_pct == 0.05
+    assert [f.velocity for f in s.fluids] == [(5.0, 0.0, 0.0), (-5.0, 0.0, 0.0)]
+    assert s.render.camera_position == (0.0, 2.0, 5.0) and s.render.focal_point == (0.0, 0.0, 0.0)
+    assert s.time_step.dt_initial == 0.001  # no timeStepSize: SPlisHSPlasH's default
+
+
+@needs_anchors
+def test_v200_flat_layout():
+    s = load_scene(ANCHORS / "Scenes_v2.0.0/DamBreakModel.json")
+    assert s.solver.density_error_pct == 0.01 and s.solver.divergence_error_pct == 0.1
+    assert s.solver.pf_stiffness == 50_000.0
+    assert s.viscosity == 0.03 and s.time_step.cfl_factor == 0.5
+    assert s.time_step.dt_initial == 0.001
+    w = s.warnings[0]
+    assert "surfaceTension" in w and "exponent" in w and "velocityUpdateMethod" in w
+    assert "not XSPH" not in w  # viscosityMethod 2 is XSPH: mapped exactly
+    bare = load_scene(ANCHORS / "Scenes_v2.0.0/DoubleDamBreak.json")
+    assert bare.time_step.cfl_factor == 0.5  # SPlisHSPlasH's default when absent
+    assert bare.method == Method.DFSPH and "no viscosity given" in bare.warnings[0]
+
+
+@needs_anchors
+def test_overrides_apply_to_imported_scenes():
+    s = load_scene(ANCHORS / "Scenes/DamBreakModel.json",
+                   ["simulation.method=ipsph", "fluid.0.velocity=[1, 0, 0]",
+                    "simulation.end_time=1.0"])
+    assert s.method == Method.IPSPH and s.fluids[0].velocity == (1.0, 0.0, 0.0)
+    assert s.end_time == 1.0 and s.solver.density_error_pct == 0.05
+    assert s.warnings and "boundaryHandlingMethod" in s.warnings[0]
+
+
+# -- synthetic scenes ----------------------------------------------------------------------------
+
+def scene_file(tmp_path: Path, data: dict, name: str = "s.json") -> Path:
+    (tmp_path / "box.obj").write_text("v 0 0 0\n")  # the scene layer only checks existence
+    p = tmp_path / name
+    p.write_text(json.dumps(data))
+    return p
+
+
+BLOCK = {"start": [0, 0, 0], "end": [0.5, 0.5, 0.5]}
+
+
+def test_json_syntax_error_has_line_and_column(tmp_path):
+    p = tmp_path / "bad.json"
+    p.write_text('{\n  "Configuration": {\n    "particleRadius": 0.025,\n  }\n}\n')
+    with pytest.raises(ConfigError, match=rf"{re.escape(str(p))}:4:3: JSON syntax error"):
+        load_scene(p)
+
+
+@pytest.mark.parametrize("data, fragment", [
+    ({"Configuration": {"simulationMethod": 2}, "FluidBlocks": [BLOCK]},
+     "Configuration.simulationMethod: 2 (PBF) is not supported"),
+    ({"FluidBlocks": [{**BLOCK, "denseMode": 1}]}, "FluidBlocks[0].denseMode: 1 is not supported"),
+    ({"FluidBlocks": [BLOCK], "RigidBodies": [{"geometryFile": "box.obj", "isDynamic": True}]},
+     "RigidBodies[0].isDynamic: dynamic rigid bodies are not supported"),
+    ({"FluidBlocks": [BLOCK], "Emitters": [{"width": 5}]}, "Emitters: not supported"),
+    ({"FluidModels": [{"particleFile": "bunny.bgeo"}]}, "is a partio particle file"),
+    ({"Configuration": {"particleRadius": "small"}, "FluidBlocks": [BLOCK]},
+     "Configuration.particleRadius: expected a number"),
+    ({"FluidBlocks": [BLOCK], "Materials": [{"id": "A", "density0": 1000},
+                                            {"id": "B", "density0": 500}]}, "multiphase"),
+    ({"Configuration": {"particleRadius": 0.025}}, "no FluidBlocks or FluidModels"),
+])
+def test_unsupported_physics_is_refused(tmp_path, data, fragment):
+    with pytest.raises(ConfigError, match=re.escape(fragment)):
+        import_scene(scene_file(tmp_path, data))
+
+
+def test_fluid_models_rigid_bodies_and_fixed_step(tmp_path):
+    data = {
+        "Configuration": {"particleRadius": 0.02, "simulationMethod": 5, "cflMethod": 0,
+                          "timeStepSize": 0.002, "stopAt": 3.5, "dataExportFPS": 50,
+                          "kernel": 1},
+        "Materials": [{"id": "Fluid", "viscosityMethod": 0, "viscosity": 0.5}],
+        "FluidModels": [{"particleFile": "box.obj", "translation": [1, 2, 3], "scale": 0.5,
+                         "rotationAxis": [0, 1, 0], "rotationAngle": math.pi,
+                         "initialVelocity": [0, -1, 0], "resolutionSDF": [20, 20, 20]}],
+        "RigidBodies": [{"geometryFile": "box.obj", "isWall": False, "mapInvert": True},
+                        {"geometryFile": "box.obj"}],
+    }
+    s = import_scene(scene_file(tmp_path, data))
+    assert s.method == Method.PF and s.end_time == 3.5 and s.output.fps == 50.0
+    ts = s.time_step
+    assert ts.dt_min == ts.dt_max == ts.dt_initial == 0.002  # cflMethod 0: a fixed step
+    assert s.viscosity == 0.0  # viscosityMethod 0 (None)
+    f = s.fluids[0]
+    assert f.shape == "mesh" and f.mesh == (tmp_path / "box.obj").resolve()
+    assert f.transform.scale == (0.5, 0.5, 0.5) and f.transform.translate == (1.0, 2.0, 3.0)
+    assert f.transform.rotate_deg == pytest.approx(180.0, abs=1e-12)
+    assert f.velocity == (0.0, -1.0, 0.0)
+    assert [b.role for b in s.boundaries] == [Role.CONTAINER, Role.OBSTACLE]
+    w = s.warnings[0]
+    assert "Configuration.kernel (ipsph uses the cubic spline)" in w
+    assert "FluidModels[0].resolutionSDF" in w and "cflMethod=0 (fixed step)" in w
+    assert "viscosityMethod=0 (None)" in w
+
+
+def test_missing_rigid_body_mesh_shows_both_paths(tmp_path):
+    data = {"FluidBlocks": [BLOCK], "RigidBodies": [{"geometryFile": "../models/Nope.obj"}]}
+    with pytest.raises(ConfigError) as e:
+        load_scene(scene_file(tmp_path, data))
+    msg = str(e.value)
+    assert "boundary[0].mesh: mesh file not found: '../models/Nope.obj'" in msg
+    assert str((tmp_path.parent / "models" / "Nope.obj").resolve()) in msg
