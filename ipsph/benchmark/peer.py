@@ -93,12 +93,14 @@ def run_peer(
     timeout: float = 1800,
     work_dir: Path | None = None,
     sample_load: bool = True,
+    env: dict[str, str] | None = None,
 ) -> dict:
     """Run ``scene_json`` in SPlisHSPlasH with ``method`` for ``end_time`` simulated seconds.
 
     ``params`` override the scene's Configuration (``{"boundaryHandlingMethod": 0}``) or a material
     (``{"Fluid:viscosity": 0.01}``). ``work_dir`` (optional, persistent) keeps SPlisHSPlasH's volume-map
     and boundary-sample cache between runs; by default a temporary folder is used and removed.
+    ``env`` adds environment variables for the worker (e.g. ``{"OMP_WAIT_POLICY": "passive"}``).
     The result is the worker's JSON plus ``load`` (a :class:`LoadSummary` dict sampled during the run)
     and ``command``. Raises ConfigError for bad arguments, RuntimeError (with the worker's stderr tail)
     when the peer is missing, crashes, times out or prints no result.
@@ -126,7 +128,8 @@ def run_peer(
     if sampler:
         sampler.start()
     try:
-        proc = subprocess.run(cmd, env=peer_env(threads), capture_output=True, text=True, timeout=timeout)
+        proc = subprocess.run(cmd, env={**peer_env(threads), **(env or {})}, capture_output=True, text=True,
+                              timeout=timeout)
     except subprocess.TimeoutExpired as exc:
         err = exc.stderr.decode(errors="replace") if isinstance(exc.stderr, bytes) else (exc.stderr or "")
         raise RuntimeError(f"SPlisHSPlasH peer timed out after {timeout} s on {resolved}; "
