@@ -9,6 +9,7 @@ and degrades gracefully for open or self-intersecting ones.
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -23,7 +24,7 @@ if TYPE_CHECKING:
     import pyvista as pv
 
 MESH_SUFFIXES = (".obj", ".stl", ".ply", ".vtk", ".vtu", ".vtp", ".off", ".msh")
-# Volumes below this fraction of the bounding-box volume count as zero (flat or degenerate).
+# Volumes below this fraction of (largest bounding-box extent)³ count as zero (flat or degenerate).
 ZERO_VOLUME_REL = 1e-9
 
 
@@ -44,7 +45,9 @@ def load_mesh(path: Path | str) -> "pv.PolyData":
     data = None
     if suffix not in (".off", ".msh"):
         try:
-            data = pv.read(resolved)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                data = pv.read(resolved)
         except Exception as exc:  # noqa: BLE001 - any reader failure falls through to meshio
             reasons.append(f"pyvista: {_one_line(exc)}")
     if data is None or data.n_points == 0:
@@ -248,10 +251,10 @@ def prepare_mesh(source, transform: model.Transform = model.Transform(), *, need
     vol = signed_volume(mesh)
     b = mesh.bounds
     ext = np.array([b[1] - b[0], b[3] - b[2], b[5] - b[4]])
-    box_vol = float(np.prod(ext))
+    cube = float(ext.max()) ** 3
     flipped = False
     if n_unpaired == 0:
-        if not abs(vol) > ZERO_VOLUME_REL * max(box_vol, 0.0) or box_vol == 0.0:
+        if not abs(vol) > ZERO_VOLUME_REL * cube:
             raise MeshError(f"mesh {label}: encloses zero volume (bounds {tuple(round(float(v), 6) for v in b)}); "
                             "a fluid or wall needs a solid shape")
         if vol < 0.0:

@@ -310,7 +310,7 @@ def boundary_surface(spec: model.BoundarySpec) -> "meshes.pv.PolyData":
     if _shape(spec) == "box":
         lo, hi = _scaled_box(spec)
         return meshes.transform_mesh(meshes.box_mesh(tuple(lo), tuple(hi)), _rigid(spec.transform))
-    return _prepared(_mesh_path(spec), spec.transform, need_closed=False, allow_open=True)[0]
+    return _prepared(_mesh_path(spec), spec.transform, need_closed=False, allow_open=True)[0].copy()
 
 
 # ----------------------------------------------------------------------------- overlaps
