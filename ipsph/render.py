@@ -227,7 +227,6 @@ class FrameRenderer:
         self.config = config
         self.speed_range = (lo, hi)
         self.particle_radius = float(particle_radius)
-        self._pv = pv
         p = pv.Plotter(off_screen=True, window_size=(int(config.width), int(config.height)))
         p.disable_anti_aliasing()
         p.set_background(BACKGROUND[0], top=BACKGROUND[1])
@@ -443,9 +442,9 @@ def render_output(out_dir, *, speed_range=None, config_overrides: dict | None = 
         if radius is None:
             radius = 0.01 * float(np.ptp(allp, axis=0).max() or 1.0)
     scene = run.get("scene") or {}
-    title = " | ".join(str(x) for x in (scene.get("name"), run.get("method"),
+    title = " - ".join(str(x) for x in (scene.get("name"), run.get("method"),  # no '|': VTK drops it
                                         f"{run['fluid_particles']:,} particles" if run.get("fluid_particles") else None)
-                       if x).replace("|", "-")  # VTK text drops '|'
+                       if x)
     if fps is None:
         fps = float((scene.get("output") or {}).get("fps") or 25.0)
 
