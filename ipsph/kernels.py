@@ -18,29 +18,24 @@ _INV_PI = 1.0 / math.pi
 
 @njit(inline="always", fastmath={"contract", "arcp", "reassoc"})
 def w(r, h):
-    """W(r) for a distance r >= 0."""
+    """W(r) for a distance r >= 0, branch-free: W = 2c [(1-q)+^3 - 4 (1/2-q)+^3]."""
     q = r / h
-    c = 8.0 * _INV_PI / (h * h * h)
-    if q <= 0.5:
-        q2 = q * q
-        return c * (6.0 * q2 * q - 6.0 * q2 + 1.0)
-    if q <= 1.0:
-        t = 1.0 - q
-        return 2.0 * c * t * t * t
-    return 0.0
+    a = max(1.0 - q, 0.0)
+    b = max(0.5 - q, 0.0)
+    return 16.0 * _INV_PI / (h * h * h) * (a * a * a - 4.0 * b * b * b)
 
 
 @njit(inline="always", fastmath={"contract", "arcp", "reassoc"})
 def grad_w_factor(r, h):
-    """g(r) with grad W(x) = g(r) * x, for r = |x|; 0 outside the support and at r ~ 0."""
+    """g(r) with grad W(x) = g(r) * x, for r = |x|; 0 outside the support and at r = 0.
+
+    Branch-free form of the piecewise gradient: dW/dq = 2c [-3 (1-q)+^2 + 12 (1/2-q)+^2],
+    g = dW/dq / (H r) (dW/dq vanishes at q = 0, so r is floored at 1e-9 without effect).
+    """
     q = r / h
-    if r < 1e-9 or q > 1.0:
-        return 0.0
-    cp = 48.0 * _INV_PI / (h * h * h)
-    if q <= 0.5:
-        return cp * q * (3.0 * q - 2.0) / (r * h)
-    t = 1.0 - q
-    return -cp * t * t / (r * h)
+    a = max(1.0 - q, 0.0)
+    b = max(0.5 - q, 0.0)
+    return 48.0 * _INV_PI / (h * h * h) * (4.0 * b * b - a * a) / (h * max(r, 1e-9))
 
 
 @njit(cache=True)

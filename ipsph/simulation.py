@@ -41,6 +41,33 @@ class StepStats(StepReport):
     dt_clamped: bool = False
 
 
+def sample_scene(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
+    """Fluid positions and velocities, wall particles, and notes on what was removed.
+
+    Fluid particles inside an obstacle, outside every container, or closer than d = 2r to a
+    wall particle are removed and counted (the lattice would otherwise start inside a wall).
+    """
+    from . import sampling
+    r = scene.particle_radius
+    xs, vs = [np.zeros((0, 3))], [np.zeros((0, 3))]
+    for spec in scene.fluids:
+        x = sampling.fluid_positions(spec, r)
+        xs.append(x)
+        vs.append(np.tile(np.asarray(spec.velocity, dtype=np.float64), (len(x), 1)))
+    fluid_x, fluid_v = np.concatenate(xs), np.concatenate(vs)
+    walls = [sampling.boundary_positions(spec, r) for spec in scene.boundaries]
+    boundary_x = np.concatenate([np.zeros((0, 3))] + walls)
+    notes = []
+    if len(scene.boundaries) and len(fluid_x):
+        kept, removed = sampling.remove_overlaps(fluid_x, boundary_x, sampling.default_overlap_distance(r),
+                                                 boundaries=scene.boundaries, radius=r)
+        if removed:
+            notes.append(f"{removed} of {len(fluid_x)} fluid particles overlapped a wall or lay outside the "
+                         f"containers and were removed")
+            fluid_x, fluid_v = fluid_x[kept], fluid_v[kept]
+    return np.ascontiguousarray(fluid_x), np.ascontiguousarray(fluid_v), np.ascontiguousarray(boundary_x), notes
+
+
 class Simulation:
     """One fluid simulation: particle state, static walls, a method and the clock."""
 
@@ -77,8 +104,7 @@ class Simulation:
             scene = load_scene(Path(scene), list(overrides))
         elif isinstance(scene, dict):
             scene = scene_from_dict(scene, Path.cwd(), "scene")
-        from .sampling import sample_scene
-        fluid_x, fluid_v, boundary_x = sample_scene(scene)
+        fluid_x, fluid_v, boundary_x, _ = sample_scene(scene)
         return cls(scene, fluid_x, fluid_v, boundary_x)
 
     def _domain(self, boundary_x):

@@ -26,20 +26,21 @@ def pf_global(x, s, m, xb, mb, nf, cf, nb, cb, n_s, h, rho0, lam, a, x_out, lam_
         d0 = 0.0
         d1 = 0.0
         d2 = 0.0
+        xk0, xk1, xk2 = x[k, 0], x[k, 1], x[k, 2]
         for n in range(cf[k]):
             j = nf[k, n]
-            e0 = x[k, 0] - x[j, 0]
-            e1 = x[k, 1] - x[j, 1]
-            e2 = x[k, 2] - x[j, 2]
+            e0 = xk0 - x[j, 0]
+            e1 = xk1 - x[j, 1]
+            e2 = xk2 - x[j, 2]
             f = (lk * m[j] + lam[j] * mk) * grad_w_factor(np.sqrt(e0 * e0 + e1 * e1 + e2 * e2), h)
             d0 += f * e0
             d1 += f * e1
             d2 += f * e2
         for n in range(cb[k]):
             b = nb[k, n]
-            e0 = x[k, 0] - xb[b, 0]
-            e1 = x[k, 1] - xb[b, 1]
-            e2 = x[k, 2] - xb[b, 2]
+            e0 = xk0 - xb[b, 0]
+            e1 = xk1 - xb[b, 1]
+            e2 = xk2 - xb[b, 2]
             f = lk * mb[b] * grad_w_factor(np.sqrt(e0 * e0 + e1 * e1 + e2 * e2), h)
             d0 += f * e0
             d1 += f * e1

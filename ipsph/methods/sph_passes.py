@@ -75,21 +75,23 @@ def density_factor_lambda(x, m, xb, mb, nf, cf, nb, cb, h, rho0, rho, alpha, lam
 @njit(inline="always", fastmath=FAST)
 def _density_rate_i(i, x, v, m, xb, mb, nf, cf, nb, cb, h):
     """D rho_i / Dt = sum_j m_j (v_i - v_j) . grad W_ij + sum_b m_b v_i . grad W_ib   [BK17 eq. 4]."""
+    xi0, xi1, xi2 = x[i, 0], x[i, 1], x[i, 2]
+    vi0, vi1, vi2 = v[i, 0], v[i, 1], v[i, 2]
     drho = 0.0
     for k in range(cf[i]):
         j = nf[i, k]
-        d0 = x[i, 0] - x[j, 0]
-        d1 = x[i, 1] - x[j, 1]
-        d2 = x[i, 2] - x[j, 2]
+        d0 = xi0 - x[j, 0]
+        d1 = xi1 - x[j, 1]
+        d2 = xi2 - x[j, 2]
         f = m[j] * grad_w_factor(np.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
-        drho += f * ((v[i, 0] - v[j, 0]) * d0 + (v[i, 1] - v[j, 1]) * d1 + (v[i, 2] - v[j, 2]) * d2)
+        drho += f * ((vi0 - v[j, 0]) * d0 + (vi1 - v[j, 1]) * d1 + (vi2 - v[j, 2]) * d2)
     for k in range(cb[i]):
         b = nb[i, k]
-        d0 = x[i, 0] - xb[b, 0]
-        d1 = x[i, 1] - xb[b, 1]
-        d2 = x[i, 2] - xb[b, 2]
+        d0 = xi0 - xb[b, 0]
+        d1 = xi1 - xb[b, 1]
+        d2 = xi2 - xb[b, 2]
         f = mb[b] * grad_w_factor(np.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
-        drho += f * (v[i, 0] * d0 + v[i, 1] * d1 + v[i, 2] * d2)
+        drho += f * (vi0 * d0 + vi1 * d1 + vi2 * d2)
     return drho
 
 
@@ -126,20 +128,21 @@ def apply_stiffness(x, m, xb, mb, nf, cf, nb, cb, h, k, dt, v, k_total):
         a1 = 0.0
         a2 = 0.0
         ki = k[i]
+        xi0, xi1, xi2 = x[i, 0], x[i, 1], x[i, 2]
         for n in range(cf[i]):
             j = nf[i, n]
-            d0 = x[i, 0] - x[j, 0]
-            d1 = x[i, 1] - x[j, 1]
-            d2 = x[i, 2] - x[j, 2]
+            d0 = xi0 - x[j, 0]
+            d1 = xi1 - x[j, 1]
+            d2 = xi2 - x[j, 2]
             f = m[j] * (ki + k[j]) * grad_w_factor(np.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
             a0 += f * d0
             a1 += f * d1
             a2 += f * d2
         for n in range(cb[i]):
             b = nb[i, n]
-            d0 = x[i, 0] - xb[b, 0]
-            d1 = x[i, 1] - xb[b, 1]
-            d2 = x[i, 2] - xb[b, 2]
+            d0 = xi0 - xb[b, 0]
+            d1 = xi1 - xb[b, 1]
+            d2 = xi2 - xb[b, 2]
             f = mb[b] * ki * grad_w_factor(np.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
             a0 += f * d0
             a1 += f * d1
@@ -161,15 +164,17 @@ def xsph(x, v, m, rho, xb, mb, nf, cf, nb, cb, h, zeta, v_out, drho):
         a0 = 0.0
         a1 = 0.0
         a2 = 0.0
+        xi0, xi1, xi2 = x[i, 0], x[i, 1], x[i, 2]
+        vi0, vi1, vi2 = v[i, 0], v[i, 1], v[i, 2]
         for n in range(cf[i]):
             j = nf[i, n]
-            d0 = x[i, 0] - x[j, 0]
-            d1 = x[i, 1] - x[j, 1]
-            d2 = x[i, 2] - x[j, 2]
+            d0 = xi0 - x[j, 0]
+            d1 = xi1 - x[j, 1]
+            d2 = xi2 - x[j, 2]
             wij = (m[j] / rho[j]) * w(np.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
-            a0 += wij * (v[i, 0] - v[j, 0])
-            a1 += wij * (v[i, 1] - v[j, 1])
-            a2 += wij * (v[i, 2] - v[j, 2])
+            a0 += wij * (vi0 - v[j, 0])
+            a1 += wij * (vi1 - v[j, 1])
+            a2 += wij * (vi2 - v[j, 2])
         drho[i] = _density_rate_i(i, x, v, m, xb, mb, nf, cf, nb, cb, h)
         v_out[i, 0] = v[i, 0] - zeta * a0
         v_out[i, 1] = v[i, 1] - zeta * a1

@@ -1,0 +1,128 @@
+"""Command line: `ipsph run | render | plot | bench` (also `python -m ipsph`).
+
+User errors print one line on stderr and exit 2; numerical failures exit 3; interrupts 130.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from . import __version__
+from .errors import EXIT_INTERRUPTED, IpsphError
+
+METHOD_CHOICES = ("ipsph", "pf", "dfsph")
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="ipsph",
+        description="Incompressible Projective SPH: meshes in, particles, VTU/PVD time series and renders out.")
+    p.add_argument("--version", action="version", version=f"ipsph {__version__}")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND")
+
+    r = sub.add_parser("run", help="run a scene (TOML, or a SPlisHSPlasH JSON scene) into an output folder",
+                       description="Run a scene. Without SCENE, runs the built-in default dam break.")
+    r.add_argument("scene", nargs="?", type=Path, help="scene file (.toml, or SPlisHSPlasH .json)")
+    r.add_argument("-o", "--output", type=Path, help="output folder (default: the scene's output.folder)")
+    r.add_argument("--method", choices=METHOD_CHOICES, help="override simulation.method")
+    r.add_argument("--end-time", type=float, metavar="T", help="override simulation.end_time [s]")
+    g = r.add_mutually_exclusive_group()
+    g.add_argument("--fps", type=float, metavar="F", help="frames per simulated second (default 25)")
+    g.add_argument("--every-step", action="store_true", help="write a frame after every step")
+    r.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="override any scene parameter, e.g. --set solver.pf.stiffness=25000 (repeatable)")
+    r.add_argument("--no-render", action="store_true", help="skip the PNG renders")
+    r.add_argument("--threads", type=int, metavar="N", help="worker threads (default: all cores)")
+    r.add_argument("--overwrite", action="store_true", help="replace an earlier run in the output folder")
+    r.add_argument("--resume", action="store_true", help="continue the run in the output folder from its checkpoint")
+    r.add_argument("--max-particles", type=int, metavar="N",
+                   help="refuse scenes estimated above N fluid particles (default: from available memory)")
+    r.add_argument("--quiet", action="store_true", help="no progress line")
+
+    rd = sub.add_parser("render", help="render PNGs (and a video) of a finished or running output folder")
+    rd.add_argument("out", type=Path, help="output folder of `ipsph run`")
+    rd.add_argument("--video", choices=("mp4", "gif"), nargs="?", const="mp4", help="also write a video")
+    rd.add_argument("--fps", type=float, help="video frames per second (default: the run's)")
+    rd.add_argument("--speed-range", type=float, nargs=2, metavar=("LO", "HI"),
+                    help="colour range in m/s (default: the run's maximum speed)")
+    rd.add_argument("--view", choices=("front", "side", "top", "iso"), help="named camera view")
+    rd.add_argument("--size", type=int, nargs=2, metavar=("W", "H"), help="image size in pixels")
+
+    pl = sub.add_parser("plot", help="plot density/divergence error, iterations and timings of one or more runs")
+    pl.add_argument("out", type=Path, nargs="+", help="output folders (several are overlaid)")
+    pl.add_argument("-o", "--output", type=Path, help="folder for the PNGs (default: the first run's plots/)")
+
+    b = sub.add_parser("bench", help="benchmark the methods (and SPlisHSPlasH, when installed)")
+    from .benchmark.cli import add_arguments
+    add_arguments(b)
+    return p
+
+
+def _run(args) -> int:
+    from . import runner
+    from .scene import default_scene_path, load_scene
+    overrides = list(args.set)
+    if args.method:
+        overrides.append(f"simulation.method={args.method}")
+    if args.end_time is not None:
+        overrides.append(f"simulation.end_time={args.end_time}")
+    if args.fps is not None:
+        overrides.append(f"output.fps={args.fps}")
+    if args.every_step:
+        overrides.append("output.every_step=true")
+    scene = load_scene(args.scene if args.scene is not None else default_scene_path(), overrides)
+    out = args.output if args.output is not None else scene.output.folder
+    opts = runner.RunOptions(out_dir=out, render=not args.no_render, overwrite=args.overwrite,
+                             resume=args.resume, threads=args.threads, max_particles=args.max_particles,
+                             progress=False if args.quiet else None)
+    return runner.run(scene, opts)
+
+
+def _render(args) -> int:
+    from .render import render_output
+    over = {}
+    if args.view:
+        over["view"] = args.view
+    if args.size:
+        over["width"], over["height"] = args.size
+    paths = render_output(args.out, speed_range=tuple(args.speed_range) if args.speed_range else None,
+                          config_overrides=over or None, video=args.video, fps=args.fps)
+    print(f"ipsph: wrote {len(paths)} files under {args.out}", file=sys.stderr)
+    return 0
+
+
+def _plot(args) -> int:
+    from .plots import plot_runs
+    for p in plot_runs(list(args.out), args.output):
+        print(p)
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = _parser()
+    args = parser.parse_args(argv)
+    if args.command is None:
+        parser.print_help()
+        return 2
+    try:
+        if args.command == "run":
+            return _run(args)
+        if args.command == "render":
+            return _render(args)
+        if args.command == "plot":
+            return _plot(args)
+        if args.command == "bench":
+            from .benchmark.cli import main as bench_main
+            return bench_main(args)
+    except IpsphError as exc:
+        print(f"ipsph: error: {exc}", file=sys.stderr)
+        return exc.exit_code
+    except KeyboardInterrupt:
+        print("\nipsph: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    return 2
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

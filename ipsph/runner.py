@@ -1,0 +1,315 @@
+"""`ipsph run`: one simulation writing a ParaView-ready output folder, and losing nothing.
+
+Order of business: check the output folder and the particle budget (bad input exits 2 before
+any large allocation), sample, write the boundary once, then per frame a VTU + the PVD
+(atomically) + a render, per step a stats row. SIGINT/SIGTERM finish the current step, write
+a final frame and exit 130; a numerical failure stops with exit 3; run.json always says
+how the run ended.
+"""
+from __future__ import annotations
+
+import math
+import os
+import shutil
+import signal
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from . import io as out_io
+from .io import provenance, pvd, stats, vtu  # noqa: F401  (submodules used via out_io)
+from .errors import EXIT_INTERRUPTED, EXIT_OK, IpsphError, NumericalFailure, OutputError
+from .model import Scene
+from .simulation import Simulation, StepStats, sample_scene
+
+PHASES = ("neighbourSearch", "densities", "solvePDConstraints", "xsph", "divergenceSolve", "densitySolve")
+STATS_COLUMNS = ("step", "time", "dt", "particles", "density_error_mean_pct", "density_error_max_pct",
+                 "divergence_error_pct", "pd_passes", "divergence_iterations", "density_iterations",
+                 "max_speed", "kinetic_energy", "dt_clamped", "solver_maxed", "ms_step") \
+    + tuple(f"ms_{p}" for p in PHASES)
+BYTES_PER_PARTICLE = 1024  # the solver's budget per fluid particle (docs/performance.md)
+
+
+class Interrupted(Exception):
+    """SIGINT / SIGTERM arrived; the run stops after the current step."""
+
+
+@dataclass
+class RunOptions:
+    out_dir: Path
+    render: bool = True
+    overwrite: bool = False
+    resume: bool = False
+    threads: int | None = None
+    max_particles: int | None = None
+    progress: bool | None = None   # None: only on a TTY
+
+
+# -- checks before any allocation ------------------------------------------------------------------
+def check_output_folder(out: Path, overwrite: bool, resume: bool) -> None:
+    """Refuse an unwritable folder, or one holding an earlier run (unless overwrite/resume)."""
+    out = out.expanduser()
+    if out.exists() and not out.is_dir():
+        raise OutputError(f"output folder {out} (resolved {out.resolve()}) is a file; choose another -o")
+    if (out / out_io.RUN_JSON).exists() and not (overwrite or resume):
+        raise OutputError(f"output folder {out} holds an earlier run; pass --overwrite to replace it "
+                          f"or --resume to continue it")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        probe = out / f".ipsph-write-test-{os.getpid()}"
+        probe.write_bytes(b"ok")
+        probe.unlink()
+    except OSError as exc:
+        raise OutputError(f"output folder {out} (resolved {out.resolve()}) is not writable: "
+                          f"{exc.strerror or exc}") from exc
+    if overwrite and not resume:
+        for name in (out_io.FRAMES_DIR, out_io.RENDERS_DIR, out_io.PLOTS_DIR):
+            shutil.rmtree(out / name, ignore_errors=True)
+        for name in (out_io.RUN_PVD, out_io.BOUNDARY_VTU, out_io.BOUNDARY_SURFACE, out_io.STATS_CSV,
+                     out_io.RUN_JSON, "checkpoint.npz"):
+            (out / name).unlink(missing_ok=True)
+
+
+def default_max_particles() -> int:
+    """Half the available memory at BYTES_PER_PARTICLE per particle."""
+    try:
+        import psutil
+        avail = psutil.virtual_memory().available
+    except Exception:  # pragma: no cover - psutil is a dependency
+        avail = 8 << 30
+    return int(avail // 2 // BYTES_PER_PARTICLE)
+
+
+def check_size(scene: Scene, max_particles: int | None) -> int:
+    """Estimate the fluid count before sampling and refuse what would not fit (exit 2)."""
+    from . import sampling
+    from .errors import ConfigError
+    limit = max_particles or default_max_particles()
+    total = 0
+    for spec in scene.fluids:
+        n = sampling.estimate_fluid_count(spec, scene.particle_radius)
+        total += n
+        if total > limit:
+            ext = _extent_hint(spec)
+            raise ConfigError(
+                f"fluid '{spec.name}' would need about {total:,} particles ({total * BYTES_PER_PARTICLE / 2**30:.1f} GiB) "
+                f"at particle_radius {scene.particle_radius} m, over the limit of {limit:,} (--max-particles){ext}")
+    return total
+
+
+def _extent_hint(spec) -> str:
+    if spec.shape == "box" and spec.box_min is not None:
+        ext = np.abs(np.subtract(spec.box_max, spec.box_min) * np.asarray(spec.transform.scale))
+        hint = f"; its extent is {ext[0]:.4g} x {ext[1]:.4g} x {ext[2]:.4g} m"
+    else:
+        try:
+            from .meshes import load_mesh, transform_mesh
+            b = np.asarray(transform_mesh(load_mesh(spec.mesh), spec.transform).bounds).reshape(3, 2)
+            ext = b[:, 1] - b[:, 0]
+            hint = f"; its mesh extent is {ext[0]:.4g} x {ext[1]:.4g} x {ext[2]:.4g} m"
+        except Exception:
+            return ""
+    if ext.max() > 100:
+        hint += " (a mesh 1000x too large is probably in millimetres: scale it by 0.001)"
+    return hint
+
+
+# -- the run ---------------------------------------------------------------------------------------
+class OutputFolder:
+    """Writes frames, the PVD, stats rows and run.json for one Simulation."""
+
+    def __init__(self, out: Path, sim: Simulation, scene: Scene, info: dict, render: bool, progress: bool):
+        self.out, self.sim, self.scene, self.info = out, sim, scene, info
+        self.fields = scene.output.fields
+        (out / out_io.FRAMES_DIR).mkdir(parents=True, exist_ok=True)
+        b = sim.boundary
+        boundary_file = None
+        if b.n:
+            out_io.vtu.write_particles(out / out_io.BOUNDARY_VTU, b.x,
+                                       {"volume": b.psi, "id": np.arange(b.n, dtype=np.int64)}, 0.0)
+            boundary_file = out_io.BOUNDARY_VTU
+        self.surface = self._write_surface()
+        self.pvd = out_io.pvd.PvdSeries(out / out_io.RUN_PVD, boundary_file)
+        self.stats = out_io.stats.StatsWriter(out / out_io.STATS_CSV, STATS_COLUMNS)
+        self.frames = 0
+        self.last_frame_time = None
+        self.renderer = self._renderer() if render else None
+        self.progress = progress
+        self.t_start = time.perf_counter()
+        self.render_seconds = 0.0
+        self.write_seconds = 0.0
+        self.timings: dict[str, list[float]] = {}
+
+    def _write_surface(self):
+        if not self.scene.boundaries:
+            return None
+        import pyvista as pv
+        from .sampling import boundary_surface
+        surf = pv.merge([boundary_surface(spec) for spec in self.scene.boundaries])
+        out_io.vtu.write_surface(self.out / out_io.BOUNDARY_SURFACE, surf)
+        return surf
+
+    def _renderer(self):
+        from . import render
+        ok, why = render.gl_available()
+        if not ok:
+            print(f"ipsph: warning: renders skipped: {why}", file=sys.stderr)
+            self.info["render"] = {"enabled": False, "skipped": why}
+            return None
+        sim, scene = self.sim, self.scene
+        speed = max((float(np.linalg.norm(f.velocity)) for f in scene.fluids), default=0.0)
+        bounds = self.info["domain_bounds"]
+        top = float(sim.positions[:, 1].max()) if sim.n_fluid else bounds[3]
+        rng = scene.render.speed_range or render.default_speed_range(speed, scene.gravity, top, bounds[2])
+        self.info["render"] = {**_asdict(scene.render), "enabled": True, "speed_range": list(rng)}
+        return render.FrameRenderer(scene.render, bounds, scene.particle_radius, rng, self.surface,
+                                    title=f"{scene.name} - {scene.method.value.upper()}")
+
+    def frame(self, sim: Simulation, k: int) -> None:
+        t0 = time.perf_counter()
+        if self.last_frame_time is not None and sim.time <= self.last_frame_time:
+            return
+        name = out_io.frame_file(self.frames)
+        fields = {}
+        for f in self.fields:
+            fields[f] = {"velocity": lambda: sim.velocities.astype(np.float32),
+                         "density": lambda: sim.densities.astype(np.float32),
+                         "pressure": lambda: sim.pressures.astype(np.float32),
+                         "mass": lambda: sim.masses.astype(np.float32),
+                         "id": lambda: sim.ids}[f]()
+        out_io.vtu.write_particles(self.out / name, sim.positions.astype(np.float32), fields, sim.time)
+        self.pvd.add(sim.time, name)
+        t1 = time.perf_counter()
+        self.write_seconds += t1 - t0
+        if self.renderer is not None:
+            png = self.out / out_io.RENDERS_DIR / f"frame_{self.frames:06d}.png"
+            self.renderer.render(sim.positions, sim.velocities, png, time=sim.time)
+            self.render_seconds += time.perf_counter() - t1
+        self.frames += 1
+        self.last_frame_time = sim.time
+
+    def step(self, s: StepStats) -> None:
+        row = {"step": s.step, "time": s.time, "dt": s.dt, "particles": self.sim.n_fluid,
+               "density_error_mean_pct": 100 * s.density_error_mean,
+               "density_error_max_pct": 100 * s.density_error_max,
+               "divergence_error_pct": 100 * s.divergence_error, "pd_passes": s.pd_passes,
+               "divergence_iterations": s.divergence_iterations, "density_iterations": s.density_iterations,
+               "max_speed": s.max_speed, "kinetic_energy": s.kinetic_energy, "dt_clamped": s.dt_clamped,
+               "solver_maxed": s.solver_maxed, "ms_step": 1000 * s.timings.get("step", 0.0)}
+        for p in PHASES:
+            row[f"ms_{p}"] = 1000 * s.timings.get(p, 0.0)
+        for p, v in s.timings.items():
+            self.timings.setdefault(p, []).append(1000 * v)
+        self.stats.write(row)
+        if self.progress:
+            end = self.scene.end_time
+            rate = s.step / max(time.perf_counter() - self.t_start, 1e-9)
+            sys.stderr.write(f"\r  t = {s.time:7.3f} / {end:.3f} s  frame {self.frames:4d}  step {s.step:6d}  "
+                             f"density error {100 * s.density_error_mean:.3f} %  {rate:6.1f} steps/s ")
+            sys.stderr.flush()
+        if _STOP["signal"]:
+            raise Interrupted()
+
+    def close(self) -> None:
+        if self.progress:
+            sys.stderr.write("\n")
+        self.stats.close()
+        if self.renderer is not None:
+            self.renderer.close()
+
+
+_STOP = {"signal": None}
+
+
+def _on_signal(signum, _frame):
+    _STOP["signal"] = signum
+
+
+def _asdict(obj):
+    from .io.provenance import to_jsonable
+    return to_jsonable(obj)
+
+
+def run(scene: Scene, opts: RunOptions) -> int:
+    """Run `scene` into `opts.out_dir`; returns the exit code (errors before the run raise)."""
+    from .scene import scene_to_dict
+    out = opts.out_dir
+    check_output_folder(out, opts.overwrite, opts.resume)
+    check_size(scene, opts.max_particles)
+    if opts.threads:
+        import numba
+        numba.set_num_threads(int(opts.threads))
+    for w in scene.warnings:
+        print(f"ipsph: warning: {w}", file=sys.stderr)
+    t_setup = time.perf_counter()
+    fluid_x, fluid_v, boundary_x, notes = sample_scene(scene)
+    for note in notes:
+        print(f"ipsph: note: {note}", file=sys.stderr)
+    if len(fluid_x) == 0:
+        from .errors import ConfigError
+        raise ConfigError("the scene has no fluid particles after sampling (check [[fluid]] entries and "
+                          "that the fluid lies inside its container)")
+    sim = Simulation(scene, fluid_x, fluid_v, boundary_x)
+    import numba
+    lo = np.minimum(fluid_x.min(axis=0), boundary_x.min(axis=0)) if len(boundary_x) else fluid_x.min(axis=0)
+    hi = np.maximum(fluid_x.max(axis=0), boundary_x.max(axis=0)) if len(boundary_x) else fluid_x.max(axis=0)
+    info = {"scene": scene_to_dict(scene), "scene_file": str(scene.source) if scene.source else None,
+            "method": scene.method.value, "status": "running", "completed": False, "exit_code": None,
+            "particle_radius": scene.particle_radius, "fluid_particles": sim.n_fluid,
+            "boundary_particles": sim.n_boundary,
+            "domain_bounds": [float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1]), float(lo[2]), float(hi[2])],
+            "frames": 0, "steps": 0, "sim_time": 0.0, "wall_seconds": None, "threads": numba.get_num_threads(),
+            "notes": notes, "warnings": list(scene.warnings), "versions": out_io.provenance.versions(),
+            "started": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
+    progress = sys.stderr.isatty() if opts.progress is None else opts.progress
+    folder = OutputFolder(out, sim, scene, info, opts.render and scene.render.enabled, progress)
+    info["setup_seconds"] = time.perf_counter() - t_setup
+    _write_info(out, info, sim, folder)
+    old = {s: signal.signal(s, _on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    _STOP["signal"] = None
+    code, status = EXIT_OK, "completed"
+    t0 = time.perf_counter()
+    try:
+        sim.run(on_frame=folder.frame, on_step=folder.step)
+    except Interrupted:
+        folder.frame(sim, -1)  # the final frame at the interrupt time
+        code, status = EXIT_INTERRUPTED, "interrupted"
+        print(f"\nipsph: interrupted at t = {sim.time:.4g} s (step {sim.steps}); "
+              f"{folder.frames} frames are in {out}", file=sys.stderr)
+    except NumericalFailure as exc:
+        code, status = exc.exit_code, "failed"
+        info["error"] = str(exc)
+        print(f"\nipsph: error: {exc}; {folder.frames} finished frames are kept in {out}", file=sys.stderr)
+    except IpsphError as exc:
+        code, status = exc.exit_code, "failed"
+        info["error"] = str(exc)
+        print(f"\nipsph: error: {exc}", file=sys.stderr)
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+        folder.close()
+        info.update(status=status, completed=status == "completed", exit_code=code,
+                    wall_seconds=time.perf_counter() - t0, finished=time.strftime("%Y-%m-%dT%H:%M:%S%z"))
+        _write_info(out, info, sim, folder)
+    if status == "completed" and progress is not None:
+        _summary(out, sim, folder, info)
+    return code
+
+
+def _write_info(out: Path, info: dict, sim: Simulation, folder: OutputFolder) -> None:
+    info.update(frames=folder.frames, steps=sim.steps, sim_time=sim.time, clamped_steps=sim.clamped_steps,
+                timings_ms={p: float(np.median(v)) for p, v in folder.timings.items()},
+                render_seconds=folder.render_seconds, write_seconds=folder.write_seconds)
+    out_io.provenance.write_run_json(out / out_io.RUN_JSON, info)
+
+
+def _summary(out: Path, sim: Simulation, folder: OutputFolder, info: dict) -> None:
+    wall = info["wall_seconds"]
+    per_sim = wall / sim.time if sim.time > 0 else math.nan
+    print(f"ipsph: {info['method']} {sim.n_fluid:,} fluid + {sim.n_boundary:,} boundary particles, "
+          f"{sim.steps} steps to t = {sim.time:.3g} s in {wall:.1f} s ({per_sim:.2f} s per simulated second), "
+          f"{folder.frames} frames in {out}/{out_io.RUN_PVD}"
+          + (f"; {sim.clamped_steps} steps hit dt_min" if sim.clamped_steps else ""), file=sys.stderr)
