@@ -80,22 +80,13 @@ def _as_triangles(data) -> "pv.PolyData":
         data = data.combine()
     surf = data.extract_surface(algorithm="dataset_surface") if not isinstance(data, pv.PolyData) else data
     surf = surf.triangulate().clean()
-    # keep triangles only (drop stray lines/vertices) and rebuild a plain PolyData
-    faces = surf.regular_faces if surf.n_cells and surf.is_all_triangles else _triangles_only(surf)
+    if surf.n_cells and not surf.is_all_triangles:  # stray lines / vertices: keep the triangles
+        import pyvista as pv
+
+        surf = surf.extract_cells_by_type(pv.CellType.TRIANGLE).extract_surface(
+            algorithm="dataset_surface").clean()
+    faces = surf.regular_faces if surf.n_cells else np.empty((0, 3), dtype=np.int64)
     return tri_mesh(np.asarray(surf.points, dtype=np.float64), faces)
-
-
-def _triangles_only(surf) -> np.ndarray:
-    import pyvista as pv
-
-    if surf.n_cells == 0:
-        return np.empty((0, 3), dtype=np.int64)
-    tri = surf.extract_cells_by_type(pv.CellType.TRIANGLE)
-    if tri.n_cells == 0:
-        return np.empty((0, 3), dtype=np.int64)
-    ids = tri.point_data["vtkOriginalPointIds"] if "vtkOriginalPointIds" in tri.point_data else None
-    cells = tri.cells.reshape(-1, 4)[:, 1:]
-    return ids[cells] if ids is not None else cells
 
 
 def tri_mesh(points: np.ndarray, faces: np.ndarray) -> "pv.PolyData":

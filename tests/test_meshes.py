@@ -209,3 +209,11 @@ def test_inside_mesh_open_mesh_uses_winding_number():
     w = meshes.winding_number(p, hemi)
     np.testing.assert_array_equal(meshes.inside_mesh(p, hemi, 0.1, closed=False), w > 0.5)
     assert 0.0 < w[0] < 1.0 and math.isfinite(w[1])
+
+
+def test_stray_lines_and_vertices_are_dropped(tmp_path):
+    poly = pv.PolyData(np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [5, 5, 5]]), faces=[3, 0, 1, 2], lines=[2, 2, 3])
+    path = tmp_path / "mixed.vtp"
+    poly.save(path)
+    mesh = meshes.load_mesh(path)
+    assert mesh.is_all_triangles and mesh.n_cells == 1 and mesh.n_points == 3
