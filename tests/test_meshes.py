@@ -217,3 +217,17 @@ def test_stray_lines_and_vertices_are_dropped(tmp_path):
     poly.save(path)
     mesh = meshes.load_mesh(path)
     assert mesh.is_all_triangles and mesh.n_cells == 1 and mesh.n_points == 3
+
+
+def test_fast_winding_number_matches_exact():
+    # 7k triangles: far clusters as dipoles. Tolerance 0.05: 10x below the 0.5 decision margin,
+    # and 2x above the largest deviation measured on the dragon (0.025)
+    sphere = pv.Sphere(radius=1.0, theta_resolution=60, phi_resolution=60).triangulate()
+    rng = np.random.default_rng(6)
+    p = np.vstack([rng.uniform(-2, 2, size=(1000, 3)),
+                   rng.normal(size=(1000, 3))])
+    p[1000:] *= (1.0 + rng.uniform(-0.02, 0.02, size=(1000, 1))) / np.linalg.norm(p[1000:], axis=1)[:, None]
+    exact = meshes.winding_number(p, sphere)
+    fast = meshes.fast_winding_number(p, sphere)
+    assert sphere.n_cells > 4 * meshes.TRIANGLES_PER_CLUSTER
+    assert np.abs(fast - exact).max() < 0.05
