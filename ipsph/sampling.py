@@ -23,12 +23,16 @@ import os
 import tempfile
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numba as nb
 import numpy as np
 
 from ipsph import meshes, model
 from ipsph.errors import ConfigError
+
+if TYPE_CHECKING:
+    import pyvista as pv
 
 SAMPLER_VERSION = "ipsph-sampling-1"
 BOUNDARY_SPACING_FACTOR = 1.5     # box-grid spacing <= 1.5 r (method.md section 1)
@@ -305,7 +309,7 @@ def boundary_positions(spec: model.BoundarySpec, radius: float, *, cache: bool =
     return _cached("boundary", spec, r, cache, lambda: _sample_boundary(spec, r))
 
 
-def boundary_surface(spec: model.BoundarySpec) -> "meshes.pv.PolyData":
+def boundary_surface(spec: model.BoundarySpec) -> "pv.PolyData":
     """The transformed wall surface as triangles (for rendering)."""
     if _shape(spec) == "box":
         lo, hi = _scaled_box(spec)
