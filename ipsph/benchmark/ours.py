@@ -1,0 +1,95 @@
+"""Our methods as benchmark subjects: one simulation per worker subprocess, with the machine's load.
+
+>>> r = run_ours(Path(".../Scenes/DamBreakModel.json"), "ipsph", end_time=1.0, threads=2)
+>>> r["ms_per_step_median"], r["wall_seconds_per_sim_second"], r["load"]["others_busy_mean"]
+
+The worker (:mod:`ipsph.benchmark._ours_worker`) gets ``NUMBA_NUM_THREADS`` in its environment, so
+the thread pool is sized before Numba starts; its peak RSS therefore belongs to one method only.
+See the worker's docstring for the meaning of every key of the result.
+"""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+from ..errors import ConfigError
+from .machine import LoadSampler
+
+__all__ = ["METHODS", "ours_env", "run_ours"]
+
+METHODS = ("ipsph", "pf", "dfsph")
+_REPO_ROOT = Path(__file__).resolve().parents[2]
+_STDERR_TAIL = 3000
+
+
+def ours_env(threads: int | None = None, extra: dict[str, str] | None = None) -> dict[str, str]:
+    """Environment for a worker: ipsph importable, NUMBA_NUM_THREADS set."""
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (str(_REPO_ROOT), env.get("PYTHONPATH", "")) if p)
+    if threads is not None:
+        env["NUMBA_NUM_THREADS"] = str(threads)
+    env.update(extra or {})
+    return env
+
+
+def run_ours(scene_path: str | Path, method: str, end_time: float | None, threads: int,
+             overrides: tuple[str, ...] | list[str] = (), *, steps: int | None = None, warmup: int = 1,
+             timeout: float = 1800, sample_load: bool = True, env: dict[str, str] | None = None) -> dict:
+    """Run `scene_path` ("default" for the built-in scene) with `method` in a worker subprocess.
+
+    Either `end_time` (simulated seconds) or `steps` (+ `warmup` steps left out of the statistics).
+    Returns the worker's JSON plus ``load`` (a LoadSummary dict sampled around the worker) and
+    ``command``. Raises ConfigError for bad arguments and RuntimeError (with the worker's stderr
+    tail) when the worker fails, times out or prints no result.
+    """
+    if method not in METHODS:
+        raise ConfigError(f"method {method!r} is unknown: use one of {', '.join(METHODS)}")
+    if not (isinstance(threads, int) and threads >= 1):
+        raise ConfigError(f"threads {threads!r} must be an integer >= 1")
+    if (end_time is None) == (steps is None):
+        raise ConfigError("give exactly one of end_time and steps")
+    scene = str(scene_path)
+    if scene != "default":
+        resolved = Path(scene).expanduser().resolve()
+        if not resolved.is_file():
+            raise ConfigError(f"scene {scene_path} (resolved {resolved}) is not a file")
+        scene = str(resolved)
+    cmd = [sys.executable, "-m", "ipsph.benchmark._ours_worker", "--scene", scene, "--method", method,
+           "--threads", str(threads)]
+    if steps is not None:
+        cmd += ["--steps", str(int(steps)), "--warmup", str(int(warmup))]
+    else:
+        cmd += ["--end-time", repr(float(end_time))]
+    for item in overrides:
+        cmd += ["--set", str(item)]
+
+    sampler = LoadSampler(0.5) if sample_load else None
+    if sampler:
+        sampler.start()
+    try:
+        proc = subprocess.run(cmd, env=ours_env(threads, env), capture_output=True, text=True, timeout=timeout)
+    except subprocess.TimeoutExpired as exc:
+        err = exc.stderr.decode(errors="replace") if isinstance(exc.stderr, bytes) else (exc.stderr or "")
+        raise RuntimeError(f"ipsph worker timed out after {timeout} s on {scene} method={method}; "
+                           f"stderr tail:\n{err[-_STDERR_TAIL:]}") from None
+    finally:
+        load = sampler.stop() if sampler else None
+
+    lines = [ln for ln in (proc.stdout or "").splitlines() if ln.strip()]
+    result = None
+    if proc.returncode == 0 and lines:
+        try:
+            result = json.loads(lines[-1])
+        except json.JSONDecodeError:
+            result = None
+    if result is None:
+        status = (f"killed by signal {-proc.returncode}" if proc.returncode < 0
+                  else f"exit status {proc.returncode}")
+        raise RuntimeError(f"ipsph worker failed ({status}) on {scene} method={method}; "
+                           f"stderr tail:\n{(proc.stderr or '')[-_STDERR_TAIL:]}")
+    result["load"] = load.as_dict() if load else None
+    result["command"] = cmd
+    return result
