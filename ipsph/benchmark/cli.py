@@ -1,9 +1,286 @@
-"""`ipsph bench` (being written)."""
+"""`ipsph bench`: our three methods against SPlisHSPlasH (when installed), interleaved, on a shared machine.
+
+    ipsph bench                                  # DamBreakModel + DoubleDamBreak, ipsph pf dfsph + peer, 3 repeats
+    ipsph bench --repeats 1 --end-time 0.5 --markdown --json bench.json
+    ipsph bench --scaling 10000 100000 1000000    # ms/step, us per particle-step, bytes per particle
+    ipsph bench --first-frame                    # seconds to the first frame, cold and warm Numba cache
+    ipsph bench --table1                         # issue 5: the paper's Table 1 on pipelines/*.toml
+
+Every simulation runs in its own worker process (peak RSS per method) with the same thread count
+(NUMBA_NUM_THREADS for ours, OMP_NUM_THREADS for SPlisHSPlasH), in the order
+``for repeat: for scene: for method`` so machine noise spreads over all methods alike. A run during
+which other processes used more than ``--max-load`` cores is shown as loaded and left out of the medians.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from ..errors import ConfigError
+from . import report
+from .scenes import (DEFAULT_SCENES, PIPELINES, pipeline_path, resolve_scene, scaling_count,
+                     scaling_overrides)
+
+OUR_METHODS = ("ipsph", "pf", "dfsph")
+PEER_METHODS = ("dfsph", "pf")
+FIRST_FRAME_TARGET_S = 5.0
 
 
-def add_arguments(p):
-    pass
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.description = ("Benchmark our methods (and SPlisHSPlasH's DFSPH and PF, when pysplishsplash is installed) "
+                     "on the stock SPlisHSPlasH scenes, interleaved, one process per run.")
+    p.add_argument("--scenes", nargs="+", metavar="SCENE", default=None,
+                   help=f"scene files or stock scene names (default: {' '.join(DEFAULT_SCENES)})")
+    p.add_argument("--scene-dir", type=Path, metavar="DIR",
+                   help="SPlisHSPlasH Scenes folder for scene names (default: shared/anchors/splishsplash/Scenes "
+                        "next to the repository or the current directory)")
+    p.add_argument("--methods", nargs="+", choices=OUR_METHODS, default=list(OUR_METHODS),
+                   help="our methods to run (default: ipsph pf dfsph)")
+    p.add_argument("--peer", action=argparse.BooleanOptionalAction, default=None,
+                   help="also run SPlisHSPlasH's DFSPH and PF (default: when pysplishsplash imports)")
+    p.add_argument("--end-time", type=float, default=1.0, metavar="T", help="simulated seconds per run (default 1.0)")
+    p.add_argument("--repeats", type=int, default=3, metavar="R", help="interleaved repeats (default 3)")
+    p.add_argument("--threads", type=int, default=2, metavar="N", help="threads for every method (default 2)")
+    p.add_argument("--max-load", type=float, default=0.5, metavar="CORES",
+                   help="flag a run as loaded when other processes used more than this many cores on average "
+                        "(i.e. mean load > threads + CORES); loaded runs are printed, not counted (default 0.5)")
+    p.add_argument("--scaling", nargs="*", type=int, metavar="N", default=None,
+                   help="scaling sweep instead: dam break with ~N fluid particles each (default sizes: "
+                        "10000 100000 1000000)")
+    p.add_argument("--scaling-methods", nargs="+", choices=OUR_METHODS, default=["ipsph"],
+                   help="methods of the scaling sweep (default: ipsph)")
+    p.add_argument("--scaling-steps", type=int, default=10, metavar="S",
+                   help="timed steps per size, after 2 warm-up steps (default 10)")
+    p.add_argument("--first-frame", action="store_true",
+                   help="time to first frame of `ipsph run` (default scene), with a cold and a warm Numba cache")
+    p.add_argument("--table1", action="store_true",
+                   help="issue 5: IPSPH, DFSPH and PF on pipelines/*.toml (and SPlisHSPlasH on its stock scenes), "
+                        "the paper's Table 1 columns")
+    p.add_argument("--pipelines", nargs="+", choices=sorted(PIPELINES), default=None,
+                   help="with --table1: which pipelines (default: all three)")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="scene override for our runs (repeatable), e.g. --set boundary.1.mesh=/path/Dragon_50k.obj")
+    p.add_argument("--markdown", action="store_true", help="print Markdown tables")
+    p.add_argument("--json", type=Path, metavar="PATH", help="save every raw result as JSON")
+    p.add_argument("--timeout", type=float, default=1800.0, metavar="S", help="per-run timeout (default 1800 s)")
+
+
+# -- helpers ---------------------------------------------------------------------------------------
+def _log(msg: str) -> None:
+    print(msg, file=sys.stderr, flush=True)
+
+
+def _check_args(args) -> None:
+    if not args.end_time > 0:
+        raise ConfigError(f"--end-time {args.end_time}: must be > 0 simulated seconds")
+    if args.repeats < 1:
+        raise ConfigError(f"--repeats {args.repeats}: must be >= 1")
+    if args.threads < 1:
+        raise ConfigError(f"--threads {args.threads}: must be >= 1")
+    if not args.max_load >= 0:
+        raise ConfigError(f"--max-load {args.max_load}: must be >= 0 cores")
+    if args.scaling_steps < 1:
+        raise ConfigError(f"--scaling-steps {args.scaling_steps}: must be >= 1")
+    cpus = os.cpu_count() or 1
+    if args.threads > cpus:
+        _log(f"ipsph bench: warning: --threads {args.threads} is more than the {cpus} logical cores")
+
+
+def _use_peer(flag: bool | None) -> tuple[bool, str]:
+    from .peer import peer_available
+    if flag is False:
+        return False, "SPlisHSPlasH: off (--no-peer)"
+    ok, why = peer_available()
+    if flag and not ok:
+        raise ConfigError(f"--peer: {why}")
+    return ok, (f"SPlisHSPlasH: {why}" if ok else f"SPlisHSPlasH: skipped ({why})")
+
+
+def _run_one(kind: str, scene_file: Path, method: str, args, label_scene: str, repeat: int, work_dir: Path,
+             overrides=(), end_time: float | None = None) -> dict:
+    """Run one (ours or peer) simulation; failures become a row with `error`."""
+    t = args.end_time if end_time is None else end_time
+    t0 = time.perf_counter()
+    try:
+        if kind == "ours":
+            from .ours import run_ours
+            res = run_ours(scene_file, method, t, args.threads, overrides, timeout=args.timeout)
+        else:
+            from .peer import run_peer
+            res = run_peer(scene_file, method, t, args.threads, timeout=args.timeout, work_dir=work_dir)
+        row = report.normalise(res, kind, method, label_scene, repeat)
+        row["raw"] = res
+    except (RuntimeError, ConfigError, OSError) as exc:
+        row = {"scene": label_scene, "source": kind, "method": method, "repeat": repeat,
+               "label": report.LABELS[(kind, method)], "error": str(exc)}
+    row["elapsed_s"] = time.perf_counter() - t0
+    return row
+
+
+def _progress(i: int, n: int, row: dict, max_load: float) -> None:
+    head = f"[{i}/{n}] {row['scene']} {row['label']} run {row['repeat'] + 1}: "
+    if row.get("error"):
+        _log(head + "FAILED: " + row["error"].splitlines()[0])
+        return
+    flag = " LOADED" if report.is_loaded(row, max_load) else ""
+    _log(head + f"{row['elapsed_s']:.1f} s, {row['ms_step']:.2f} ms/step, {row['wall_per_sim']:.2f} s/sim s, "
+         f"others {row['others_cores']:.2f} cores{flag}")
+
+
+def _interleaved(jobs: list[tuple], args) -> list[dict]:
+    """jobs: (kind, scene_file, method, label_scene, overrides), run `repeats` times interleaved."""
+    rows = []
+    n = len(jobs) * args.repeats
+    with tempfile.TemporaryDirectory(prefix="ipsph-bench-") as tmp:
+        for rep in range(args.repeats):
+            for kind, scene_file, method, label, overrides in jobs:
+                row = _run_one(kind, scene_file, method, args, label, rep, Path(tmp), overrides)
+                rows.append(row)
+                _progress(len(rows), n, row, args.max_load)
+    return rows
+
+
+# -- modes -----------------------------------------------------------------------------------------
+def bench_scenes(args, peer: bool) -> tuple[str, list[dict]]:
+    names = args.scenes or list(DEFAULT_SCENES)
+    files = [(resolve_scene(s, args.scene_dir), s) for s in names]
+    jobs = []
+    for f, given in files:
+        label = f.stem
+        jobs += [("ours", f, m, label, tuple(args.set)) for m in args.methods]
+        if peer:
+            if f.suffix.lower() == ".json":
+                jobs += [("peer", f, m, label, ()) for m in PEER_METHODS]
+            else:
+                _log(f"ipsph bench: note: {given} is not a SPlisHSPlasH scene; SPlisHSPlasH skips it")
+    rows = _interleaved(jobs, args)
+    groups = report.summarise(rows, args.max_load)
+    return report.scene_tables(groups, args.markdown, args.max_load), rows
+
+
+def bench_table1(args, peer: bool) -> tuple[str, list[dict]]:
+    jobs = []
+    for stem in args.pipelines or list(PIPELINES):
+        path = pipeline_path(stem)
+        jobs += [("ours", path, m, stem, tuple(args.set)) for m in ("ipsph", "dfsph", "pf") if m in args.methods]
+        if peer:
+            stock = resolve_scene(PIPELINES[stem], args.scene_dir)
+            jobs += [("peer", stock, m, f"{stem} / {stock.stem}", ()) for m in PEER_METHODS]
+    rows = _interleaved(jobs, args)
+    groups = report.summarise(rows, args.max_load)
+    return report.table1(groups, args.markdown), rows
+
+
+def bench_scaling(args) -> tuple[str, list[dict]]:
+    from .ours import run_ours
+    sizes = args.scaling or [10_000, 100_000, 1_000_000]
+    rows = []
+    for n in sizes:
+        over = scaling_overrides(n) + list(args.set)
+        for m in args.scaling_methods:
+            t0 = time.perf_counter()
+            _log(f"scaling: {m} ~{scaling_count(n):,} fluid particles ...")
+            try:
+                res = run_ours("default", m, None, args.threads, over, steps=args.scaling_steps, warmup=2,
+                               timeout=args.timeout)
+                row = report.normalise(res, "ours", m, "scaling", 0)
+                row.update(timed_steps=res.get("timed_steps"), raw=res)
+            except (RuntimeError, ConfigError, OSError) as exc:
+                row = {"label": report.LABELS[("ours", m)], "method": m, "error": str(exc)}
+            row.update(target=n, elapsed_s=time.perf_counter() - t0)
+            rows.append(row)
+            if row.get("error"):
+                _log("  FAILED: " + row["error"].splitlines()[0])
+            else:
+                _log(f"  {row['elapsed_s']:.1f} s: {row['ms_step']:.1f} ms/step, "
+                     f"{row['us_particle_step']:.3f} us/particle-step, others {row['others_cores']:.2f} cores")
+    return report.scaling_table(rows, args.markdown, args.max_load), rows
+
+
+def first_frame(threads: int, timeout: float = 900.0) -> list[dict]:
+    """Seconds for `ipsph run` (default scene, first frame at t = 0.04 s, no renders) to finish,
+    with NUMBA_CACHE_DIR pointed at a fresh folder (cold: everything compiles) and then again (warm)."""
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="ipsph-first-frame-") as tmp:
+        env = dict(os.environ, NUMBA_CACHE_DIR=str(Path(tmp) / "numba-cache"), NUMBA_NUM_THREADS=str(threads))
+        root = str(Path(__file__).resolve().parents[2])
+        env["PYTHONPATH"] = os.pathsep.join(p for p in (root, env.get("PYTHONPATH", "")) if p)
+        for cache in ("cold", "warm"):
+            out = Path(tmp) / f"out-{cache}"
+            cmd = [sys.executable, "-m", "ipsph", "run", "--end-time", "0.04", "--no-render", "--quiet",
+                   "--threads", str(threads), "-o", str(out)]
+            t0 = time.perf_counter()
+            try:
+                proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=timeout)
+                code, err = proc.returncode, proc.stderr
+            except subprocess.TimeoutExpired:
+                code, err = -1, f"timed out after {timeout} s"
+            secs = time.perf_counter() - t0
+            frames = len(list((out / "frames").glob("*.vtu"))) if (out / "frames").is_dir() else 0
+            rows.append({"cache": cache, "seconds": secs, "ok": code == 0 and frames >= 2, "exit_code": code,
+                         "frames": frames, "stderr_tail": (err or "")[-1000:], "command": cmd})
+            _log(f"first frame ({cache} cache): {secs:.1f} s, exit {code}, {frames} frames")
+    return rows
 
 
 def main(args) -> int:
-    raise SystemExit("ipsph bench: not implemented yet")
+    from .machine import machine_info
+    _check_args(args)
+    info = machine_info()
+    out: dict = {"machine": info, "threads": args.threads, "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+                 "args": {k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()
+                          if k not in ("func",)}}
+    header = (f"ipsph bench: {info['cpu_model']}, {info['usable_cores']} usable cores, {info['memory_gb']} GB; "
+              f"{args.threads} threads; loadavg at start {os.getloadavg()[0]:.2f}")
+    texts: list[str] = []
+    failed = False
+    if args.first_frame:
+        rows = first_frame(args.threads, timeout=min(args.timeout, 900.0))
+        out["first_frame"] = rows
+        texts.append(("## Time to first frame\n\n" if args.markdown else "== time to first frame ==\n")
+                     + report.first_frame_table(rows, args.markdown, FIRST_FRAME_TARGET_S))
+        failed |= not all(r["ok"] for r in rows)
+    if args.scaling is not None:
+        text, rows = bench_scaling(args)
+        out["scaling"] = rows
+        texts.append(("## Scaling (dam break)\n\n" if args.markdown else "== scaling (dam break) ==\n") + text)
+        failed |= any(r.get("error") for r in rows)
+    if args.table1 or not (args.first_frame or args.scaling is not None):
+        peer, why = _use_peer(args.peer)
+        header += f"; {why}"
+        _log(header)
+        if args.table1:
+            text, rows = bench_table1(args, peer)
+            out["table1"] = rows
+            texts.append(("## Table 1\n\n" if args.markdown else "== Table 1 ==\n") + text)
+        else:
+            text, rows = bench_scenes(args, peer)
+            out["runs"] = rows
+            texts.append(text)
+        failed |= any(r.get("error") for r in rows)
+    else:
+        _log(header)
+    print(("# " if args.markdown else "") + header + "\n")
+    print("\n\n".join(texts))
+    if args.json:
+        out["finished"] = time.strftime("%Y-%m-%dT%H:%M:%S%z")
+        path = Path(args.json)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(out, indent=1, default=_jsonable, allow_nan=True))
+        _log(f"ipsph bench: raw results in {path}")
+    return 1 if failed else 0
+
+
+def _jsonable(o):
+    if isinstance(o, Path):
+        return str(o)
+    if isinstance(o, float) and math.isnan(o):
+        return None
+    return str(o)

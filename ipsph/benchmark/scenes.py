@@ -1,0 +1,108 @@
+"""Which scenes `ipsph bench` runs: the stock SPlisHSPlasH scenes, the Table 1 pipelines, the scaling tank.
+
+* Stock scenes (``DamBreakModel``, ``DoubleDamBreak``, ``DamBreakModelDragons``) are looked up by name
+  in ``--scene-dir``, else in ``shared/anchors/splishsplash/Scenes`` next to the repository or the
+  current directory (the layout of a development checkout). Our ``load_scene`` imports them directly
+  and SPlisHSPlasH runs the same file.
+* The Table 1 pipelines (``pipelines/*.toml``) are paired with the stock scene SPlisHSPlasH runs for
+  the same case.
+* The scaling tank is the built-in default scene with overrides: a dam-break column of ~N particles
+  at r = 0.025 m in a tank 2.5 columns long (so the count is exact and nothing is written to disk).
+"""
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+
+from ..errors import ConfigError
+from ..scene import lattice_counts
+
+__all__ = ["DEFAULT_SCENES", "PIPELINES", "find_stock_scene_dir", "resolve_scene", "pipeline_path",
+           "scaling_overrides", "scaling_count"]
+
+DEFAULT_SCENES = ("DamBreakModel", "DoubleDamBreak")
+_REPO_ROOT = Path(__file__).resolve().parents[2]
+_STOCK_SUBDIR = Path("shared") / "anchors" / "splishsplash" / "Scenes"
+# Table 1 case -> (pipeline file stem, the SPlisHSPlasH stock scene for the same case)
+PIPELINES = {"breaking_dam": "DamBreakModel", "double_dam_break": "DoubleDamBreak",
+             "two_dragons": "DamBreakModelDragons"}
+
+
+def _candidates(scene_dir: str | Path | None) -> list[Path]:
+    if scene_dir is not None:
+        return [Path(scene_dir).expanduser()]
+    out = []
+    env = os.environ.get("IPSPH_SPLISHSPLASH_SCENES")
+    if env:
+        out.append(Path(env).expanduser())
+    for base in (_REPO_ROOT.parent, Path.cwd().parent, Path.cwd(), _REPO_ROOT):
+        out.append(base / _STOCK_SUBDIR)
+    return list(dict.fromkeys(out))
+
+
+def find_stock_scene_dir(scene_dir: str | Path | None = None) -> Path | None:
+    """The first folder among the candidates that exists (None when none does)."""
+    for c in _candidates(scene_dir):
+        if c.is_dir():
+            return c.resolve()
+    return None
+
+
+def resolve_scene(name_or_path: str, scene_dir: str | Path | None = None) -> Path:
+    """A scene file path, or a stock scene name (``DamBreakModel``) looked up in the stock folder."""
+    given = Path(name_or_path).expanduser()
+    if given.suffix.lower() in (".json", ".toml") or os.sep in name_or_path:
+        if given.is_file():
+            return given.resolve()
+        raise ConfigError(f"bench scene {name_or_path} (resolved {given.resolve()}) is not a file")
+    tried = []
+    for c in _candidates(scene_dir):
+        p = c / f"{name_or_path}.json"
+        tried.append(str(p))
+        if p.is_file():
+            return p.resolve()
+    raise ConfigError(f"bench scene {name_or_path!r} not found (looked for {', '.join(tried)}); pass a scene "
+                      f"file path, or the SPlisHSPlasH Scenes folder with --scene-dir")
+
+
+def pipeline_path(stem: str) -> Path:
+    """pipelines/<stem>.toml in the repository (or the current directory)."""
+    for base in (_REPO_ROOT, Path.cwd()):
+        p = base / "pipelines" / f"{stem}.toml"
+        if p.is_file():
+            return p.resolve()
+    raise ConfigError(f"pipeline {stem}.toml not found in {_REPO_ROOT / 'pipelines'} or {Path.cwd() / 'pipelines'}")
+
+
+def _scaling_dims(n_target: int) -> tuple[int, int]:
+    """(nx = nz, ny) with ny ~ 1.5 nx and nx * ny * nx ~ n_target."""
+    nx = max(2, int(round((n_target / 1.5) ** (1.0 / 3.0))))
+    ny = max(2, int(round(n_target / (nx * nx))))
+    return nx, ny
+
+
+def scaling_overrides(n_target: int, radius: float = 0.025) -> list[str]:
+    """--set overrides turning the default scene into a dam break with ~n_target fluid particles.
+
+    A box holds round(extent / 2r) - 1 particles per axis (first one at min + 2r), so an extent of
+    (n + 1) * 2r gives exactly n; the tank is 2.5 columns long, 1.25 columns high and as deep as
+    the column, which keeps the first layer one spacing from every wall.
+    """
+    if not (isinstance(n_target, int) and n_target >= 8):
+        raise ConfigError(f"--scaling size {n_target!r} must be an integer >= 8 fluid particles")
+    d = 2.0 * radius
+    nx, ny = _scaling_dims(n_target)
+    ex, ey = (nx + 1) * d, (ny + 1) * d
+    vec = lambda *v: "[" + ", ".join(repr(round(x, 9)) for x in v) + "]"  # noqa: E731
+    return [f"simulation.particle_radius={radius!r}", "fluid.0.box.min=[0.0, 0.0, 0.0]",
+            f"fluid.0.box.max={vec(ex, ey, ex)}", "boundary.0.box.min=[0.0, 0.0, 0.0]",
+            f"boundary.0.box.max={vec(2.5 * ex, 1.25 * ey, ex)}"]
+
+
+def scaling_count(n_target: int, radius: float = 0.025) -> int:
+    """The exact fluid count of scaling_overrides(n_target, radius)."""
+    d = 2.0 * radius
+    nx, ny = _scaling_dims(n_target)
+    c = lattice_counts((0, 0, 0), ((nx + 1) * d, (ny + 1) * d, (nx + 1) * d), radius)
+    return math.prod(c)

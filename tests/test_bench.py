@@ -1,0 +1,199 @@
+"""`ipsph bench`: the ours worker, report formatting (medians, loaded runs, ratios), scene lookup, pipelines.
+
+Fast tests only: one tiny worker run (default scene, 0.02 s simulated); everything else uses
+synthetic results. The real benchmark is run by hand (docs/performance.md).
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+
+from ipsph.benchmark import report
+from ipsph.benchmark.ours import run_ours
+from ipsph.benchmark.scenes import (PIPELINES, pipeline_path, resolve_scene, scaling_count,
+                                    scaling_overrides)
+from ipsph.cli import main as cli_main
+from ipsph.errors import ConfigError
+
+STOCK = Path("/work/shared/anchors/splishsplash/Scenes")
+DRAGON = Path(__file__).resolve().parents[1] / "pipelines" / "../../shared/anchors/splishsplash/models/Dragon_50k.obj"
+
+
+# -- the worker --------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def tiny_run():
+    return run_ours("default", "ipsph", 0.02, 1)
+
+
+def test_worker_returns_sane_json(tiny_run):
+    r = tiny_run
+    assert r["fluid_particles"] == 3724  # 14 x 19 x 14, documented in ipsph/scenes/default.toml
+    assert r["boundary_particles"] > 0
+    assert r["method"] == "ipsph" and r["threads"] == 1
+    assert math.isclose(r["sim_time"], 0.02, rel_tol=1e-9)  # frames/end land exactly
+    # dt_max = 4 ms at r = 0.02: at least 5 steps to 0.02 s, so at least 4 timed ones
+    assert r["steps"] >= 5 and r["timed_steps"] == r["steps"] - 1
+    assert r["ms_per_step_median"] > 0 and r["wall_seconds"] > 0 and r["first_step_seconds"] > 0
+    assert {"step", "neighbourSearch", "solvePDConstraints", "divergenceSolve"} <= set(r["phases_ms"])
+    # phases are parts of the step: each median is below the step's median
+    for k, v in r["phases_ms"].items():
+        assert 0 <= v <= r["phases_ms"]["step"] * 1.0001, k
+    # wall per simulated second ~ ms/step / dt: within a factor 3 of that (callback overhead, dt varies)
+    expect = r["ms_per_step_mean"] * 1e-3 * r["timed_steps"] / (r["sim_time"] - r["dt_mean"])
+    assert expect / 3 < r["wall_seconds_per_sim_second"] < expect * 3
+    assert 0 <= r["density_error_mean_pct"] <= r["density_error_worst_pct"] <= 5.0  # 5 %: a blown-up run
+    assert r["density_error_max_pct"] >= r["density_error_worst_pct"]
+    assert r["pd_passes_mean"] >= 2  # IPSPH runs at least min_passes = 2
+    assert r["peak_rss_mb"] > r["baseline_rss_mb"] > 0
+    # the solver's arrays: 3 x 3 float64 state (72 B) + neighbour lists (>= 64 int32 = 256 B) at least,
+    # and nowhere near 100 KB per particle
+    assert 300 < r["bytes_per_particle_solver"] < 100_000
+    assert r["load"] is not None and 0 <= r["load"]["others_busy_mean"] <= 1
+
+
+def test_run_ours_rejects_bad_input(tmp_path):
+    with pytest.raises(ConfigError, match="method"):
+        run_ours("default", "sph", 0.02, 1)
+    with pytest.raises(ConfigError, match="not a file"):
+        run_ours(tmp_path / "missing.toml", "ipsph", 0.02, 1)
+    with pytest.raises(ConfigError, match="exactly one"):
+        run_ours("default", "ipsph", None, 1)
+
+
+def test_worker_failure_carries_stderr():
+    with pytest.raises(RuntimeError, match="unknown key"):
+        run_ours("default", "ipsph", 0.02, 1, ["simulation.no_such_key=1"], sample_load=False)
+
+
+# -- report ------------------------------------------------------------------------------------------
+def _ours(ms, wall, err=0.02, others=0.0, fluid=1000):
+    return {"fluid_particles": fluid, "boundary_particles": 500, "steps": 100, "ms_per_step_median": ms,
+            "ms_per_step_mean": ms, "wall_seconds_per_sim_second": wall, "density_error_mean_pct": err,
+            "density_error_worst_pct": 2 * err, "peak_rss_mb": 100.0,
+            "phases_ms": {"step": ms, "divergenceSolve": ms / 4, "solvePDConstraints": ms / 2},
+            "phases_ms_mean": {"step": ms, "divergenceSolve": ms / 4, "solvePDConstraints": ms / 2},
+            "load": {"others_busy_mean": others / 2, "cpus": 2, "loadavg_mean": 2 + others}}
+
+
+def _peer(ms, wall, others=0.0):
+    return {"fluid_particles": 1000, "boundary_particles": 0, "steps": 80, "ms_per_step": ms,
+            "ms_per_step_mean": ms, "wall_seconds_per_sim_second": wall, "density_error_mean_pct": 0.06,
+            "density_error_worst_pct": 0.1, "peak_rss_mb": 50.0, "pressure_solve_ms": ms / 2,
+            "divergence_solve_ms": ms / 5, "step_ms": ms,
+            "load": {"others_busy_mean": others / 2, "cpus": 2, "loadavg_mean": 2.0}}
+
+
+def _rows():
+    n = report.normalise
+    return [n(_ours(10, 3.0), "ours", "ipsph", "S", 0), n(_peer(8, 2.0), "peer", "dfsph", "S", 0),
+            n(_peer(20, 6.0), "peer", "pf", "S", 0),
+            n(_ours(12, 4.0), "ours", "ipsph", "S", 1), n(_peer(9, 2.0), "peer", "dfsph", "S", 1),
+            n(_peer(20, 6.0), "peer", "pf", "S", 1),
+            # a loaded run: 1.5 other cores; its 100 ms must not enter the median
+            n(_ours(100, 30.0, others=1.5), "ours", "ipsph", "S", 2), n(_peer(10, 2.0), "peer", "dfsph", "S", 2),
+            n(_peer(20, 6.0), "peer", "pf", "S", 2)]
+
+
+def test_median_excludes_loaded_runs():
+    groups = report.summarise(_rows(), max_load=0.5)
+    g = groups[("S", "IPSPH")]
+    assert len(g["quiet"]) == 2 and len(g["loaded"]) == 1
+    assert g["median"]["ms_step"] == pytest.approx(11.0)  # median of 10 and 12, not 100
+    assert g["median"]["wall_per_sim"] == pytest.approx(3.5)
+    assert groups[("S", "SPH-DFSPH")]["median"]["ms_step"] == pytest.approx(9.0)
+    # a higher threshold counts the loaded run: the median of 10, 12, 100 is 12
+    assert report.summarise(_rows(), max_load=2.0)[("S", "IPSPH")]["median"]["ms_step"] == pytest.approx(12.0)
+
+
+def test_scene_table_prints_loaded_run_and_ratios():
+    text = report.scene_tables(report.summarise(_rows(), 0.5), markdown=False, max_load=0.5)
+    assert "IPSPH (median of 2)" in text
+    assert "IPSPH [loaded, run 3]" in text and "100.00" in text  # shown, not counted
+    assert "IPSPH / SPH-DFSPH: wall per simulated second 1.75x" in text  # 3.5 / 2.0
+    assert "IPSPH / SPH-PF: wall per simulated second 0.58x" in text     # 3.5 / 6.0
+    md = report.scene_tables(report.summarise(_rows(), 0.5), markdown=True, max_load=0.5)
+    header = next(line for line in md.splitlines() if line.startswith("| method"))
+    assert header.count("|") == len(report.SCENE_HEADERS) + 1
+    assert "|---|" in md
+
+
+def test_ratios_fall_back_to_loaded_runs_and_say_so():
+    n = report.normalise
+    rows = [n(_ours(10, 3.0, others=1.0), "ours", "ipsph", "S"), n(_peer(8, 2.0, others=1.0), "peer", "dfsph", "S")]
+    lines = report.ratio_lines(report.summarise(rows, 0.5), "S")
+    assert lines == ["IPSPH / SPH-DFSPH: wall per simulated second 1.50x, ms per step 1.25x (from LOADED runs)"]
+
+
+def test_failed_run_is_a_note():
+    rows = _rows()[:3] + [{"scene": "S", "label": "PF", "source": "ours", "method": "pf", "repeat": 0,
+                           "error": "ipsph worker failed (exit status 3)\nstderr"}]
+    text = report.scene_tables(report.summarise(rows, 0.5), markdown=False, max_load=0.5)
+    assert "PF run 1 failed: ipsph worker failed (exit status 3)" in text
+
+
+def test_table1_has_the_paper_columns():
+    text = report.table1(report.summarise(_rows(), 0.5), markdown=True)
+    head = text.splitlines()[0]
+    for col in ("avg divergenceSolve ms", "avg solvePDConstraints ms", "avg ms / step", "s wall / sim s",
+                "density err mean %", "worst %", "steps"):
+        assert col in head
+    ipsph = next(line for line in text.splitlines() if "| IPSPH |" in line)
+    assert "| 2.75 | 5.50 |" in ipsph  # mean phases of 10 and 12 ms steps: div 1/4, PD 1/2
+    dfsph = next(line for line in text.splitlines() if "| SPH-DFSPH |" in line)
+    assert "| 1.80 | — |" in dfsph  # SPlisHSPlasH DFSPH has no solvePDConstraints
+
+
+def test_scaling_table_reports_per_particle_costs():
+    row = report.normalise({**_ours(50.0, 1.0, fluid=100_000), "us_per_particle_step": 0.5,
+                            "bytes_per_particle_rss": 1200.0, "bytes_per_particle_solver": 900.0},
+                           "ours", "ipsph", "scaling")
+    text = report.scaling_table([row], markdown=False, max_load=0.5)
+    assert "100,000" in text and "0.500" in text and "1200" in text and "900" in text
+
+
+# -- scenes ------------------------------------------------------------------------------------------
+def test_scaling_overrides_give_the_target_count():
+    from ipsph import sampling
+    from ipsph.scene import default_scene_path, load_scene
+    for n in (10_000, 100_000, 1_000_000):
+        scene = load_scene(default_scene_path(), scaling_overrides(n))
+        count = sampling.estimate_fluid_count(scene.fluids[0], scene.particle_radius)
+        assert count == scaling_count(n)
+        assert abs(count - n) / n < 0.02  # lattice rounding: within 2 % of the asked size
+    with pytest.raises(ConfigError):
+        scaling_overrides(3)
+
+
+@pytest.mark.skipif(not STOCK.is_dir(), reason="SPlisHSPlasH stock scenes not in this checkout")
+def test_resolve_scene_names_and_errors(tmp_path):
+    assert resolve_scene("DamBreakModel", STOCK) == (STOCK / "DamBreakModel.json").resolve()
+    assert resolve_scene(str(STOCK / "DoubleDamBreak.json")).name == "DoubleDamBreak.json"
+    with pytest.raises(ConfigError, match="not found.*--scene-dir"):
+        resolve_scene("NoSuchScene", tmp_path)
+    with pytest.raises(ConfigError, match="not a file"):
+        resolve_scene(str(tmp_path / "x.json"))
+
+
+def test_bench_cli_missing_scene_exits_2(tmp_path, capsys):
+    code = cli_main(["bench", "--scenes", "NoSuchScene", "--scene-dir", str(tmp_path), "--no-peer",
+                     "--repeats", "1"])
+    assert code == 2
+    assert "NoSuchScene" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("stem, count", [("breaking_dam", 29 ** 3), ("double_dam_break", 2 * 12 * 16 * 11),
+                                         ("two_dragons", 19 * 39 * 39)])
+def test_pipelines_load_with_their_particle_counts(stem, count):
+    from ipsph import sampling
+    from ipsph.scene import load_scene
+    assert stem in PIPELINES
+    if stem == "two_dragons" and not DRAGON.resolve().is_file():
+        pytest.skip(f"dragon mesh not in this checkout: {DRAGON.resolve()}")
+    scene = load_scene(pipeline_path(stem))
+    assert sum(len(sampling.fluid_positions(f, scene.particle_radius)) for f in scene.fluids) == count
+    # first layer one spacing (2r) from the tank's min walls, the contract's load-bearing rule
+    tank = next(b for b in scene.boundaries if b.role.value == "container")
+    lo = min(sampling.fluid_positions(f, scene.particle_radius).min(axis=0)[1] for f in scene.fluids)
+    assert lo == pytest.approx(tank.box_min[1] + 2 * scene.particle_radius, abs=1e-9)
