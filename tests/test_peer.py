@@ -189,6 +189,9 @@ def test_peer_short_double_dam_break(method):
     assert r["step_ms"] > 0 and r["pressure_solve_ms"] > 0 and r["neighborhood_search_ms"] > 0
     assert 10.0 < r["peak_rss_mb"] < 8000.0
     assert r["threads"] == 2
+    # the fluid stays in the 3.1 m box centred at (0, 1.5, 0); one particle radius (0.025 m) of slack
+    (x0, y0, z0), (x1, y1, z1) = r["fluid_bbox_end"]
+    assert -1.575 <= min(x0, z0) and max(x1, z1) <= 1.575 and -0.075 <= y0 and y1 <= 3.075
     assert r["load"]["samples"] >= 1 and 0.0 <= r["load"]["cpu_busy_mean"] <= 1.0
 
 

@@ -190,6 +190,11 @@ def run(scene: Path, method: str, end_time: float, work_dir: Path, params) -> di
         if hasattr(bm, "numberOfParticles"):
             n_boundary += int(bm.numberOfParticles())
 
+    # where the fluid ended up: a cheap check that nothing leaked through the boundary
+    n_fluid = fluid.numActiveParticles()
+    x_end = np.asarray(fluid.getFieldBuffer("position")).reshape(-1, 3)[:n_fluid]
+    bbox = [x_end.min(axis=0).tolist(), x_end.max(axis=0).tolist()] if n_fluid else None
+
     phases = {}
     for avg in Timing.m_averageTimes.values():  # keyed by an id; the phase name is avg.name
         if avg.counter > 0:
@@ -270,6 +275,7 @@ def run(scene: Path, method: str, end_time: float, work_dir: Path, params) -> di
         "density_error_worst_pct": 100.0 * max(finite) if finite else float("nan"),
         "density_error_nonfinite_steps": len(errs) - len(finite),
         "init_seconds": init_s,
+        "fluid_bbox_end": bbox,
         "solver": solver,
         "phases": phases,
     }
