@@ -197,3 +197,15 @@ def test_pipelines_load_with_their_particle_counts(stem, count):
     tank = next(b for b in scene.boundaries if b.role.value == "container")
     lo = min(sampling.fluid_positions(f, scene.particle_radius).min(axis=0)[1] for f in scene.fluids)
     assert lo == pytest.approx(tank.box_min[1] + 2 * scene.particle_radius, abs=1e-9)
+
+
+def test_from_json_reprints_saved_results(tmp_path, capsys):
+    import json
+    saved = {"started": "t", "machine": {"cpu_model": "cpu", "usable_cores": 2}, "threads": 2,
+             "runs": _rows(), "scaling": [], "first_frame": [{"cache": "warm", "seconds": 3.0, "ok": True}]}
+    path = tmp_path / "b.json"
+    path.write_text(json.dumps(saved))
+    assert cli_main(["bench", "--from-json", str(path), "--markdown"]) == 0
+    out = capsys.readouterr().out
+    assert "### S" in out and "| IPSPH (median of 2) |" in out and "meets 5 s" in out
+    assert cli_main(["bench", "--from-json", str(tmp_path / "none.json")]) == 2

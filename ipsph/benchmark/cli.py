@@ -69,6 +69,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="scene override for our runs (repeatable), e.g. --set boundary.1.mesh=/path/Dragon_50k.obj")
     p.add_argument("--markdown", action="store_true", help="print Markdown tables")
     p.add_argument("--json", type=Path, metavar="PATH", help="save every raw result as JSON")
+    p.add_argument("--from-json", type=Path, metavar="PATH",
+                   help="run nothing: print the tables of a file saved with --json (e.g. again as --markdown)")
     p.add_argument("--timeout", type=float, default=1800.0, metavar="S", help="per-run timeout (default 1800 s)")
 
 
@@ -230,8 +232,34 @@ def first_frame(threads: int, timeout: float = 900.0) -> list[dict]:
     return rows
 
 
+def reprint(path: Path, markdown: bool, max_load: float) -> str:
+    """The tables of a saved --json file, with this call's --markdown and --max-load."""
+    try:
+        saved = json.loads(Path(path).read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise ConfigError(f"--from-json {path} (resolved {Path(path).resolve()}): cannot read it: {exc}") from exc
+    h = lambda t: (f"## {t}\n\n" if markdown else f"== {t} ==\n")  # noqa: E731
+    texts = []
+    if saved.get("first_frame"):
+        texts.append(h("time to first frame") + report.first_frame_table(saved["first_frame"], markdown,
+                                                                           FIRST_FRAME_TARGET_S))
+    if saved.get("scaling"):
+        texts.append(h("scaling (dam break)") + report.scaling_table(saved["scaling"], markdown, max_load))
+    if saved.get("table1"):
+        texts.append(h("Table 1") + report.table1(report.summarise(saved["table1"], max_load), markdown))
+    if saved.get("runs"):
+        texts.append(report.scene_tables(report.summarise(saved["runs"], max_load), markdown, max_load))
+    m = saved.get("machine", {})
+    head = (f"ipsph bench (saved {saved.get('started', '?')}): {m.get('cpu_model', '?')}, "
+            f"{m.get('usable_cores', '?')} usable cores; {saved.get('threads', '?')} threads")
+    return ("# " if markdown else "") + head + "\n\n" + "\n\n".join(texts)
+
+
 def main(args) -> int:
     from .machine import machine_info
+    if args.from_json is not None:
+        print(reprint(args.from_json, args.markdown, args.max_load))
+        return 0
     _check_args(args)
     info = machine_info()
     out: dict = {"machine": info, "threads": args.threads, "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"),

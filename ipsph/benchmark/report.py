@@ -156,7 +156,7 @@ def scene_tables(groups, markdown: bool, max_load: float) -> str:
     out = []
     scenes = list(OrderedDict.fromkeys(s for s, _ in groups))
     for scene in scenes:
-        rows, notes = [], []
+        rows, notes, no_quiet = [], [], []
         for (s, label), g in groups.items():
             if s != scene:
                 continue
@@ -165,11 +165,13 @@ def scene_tables(groups, markdown: bool, max_load: float) -> str:
                 name = label + (f" (median of {len(g['quiet'])})" if len(g["quiet"]) > 1 else "")
                 rows.append(_scene_row(name, g["median"]))
             else:
-                notes.append(f"{label}: no quiet run of {n_all} (all loaded or failed); no median")
+                no_quiet.append(f"{label} ({n_all} run{'s' if n_all != 1 else ''})")
             for r in g["loaded"]:
                 rows.append(_scene_row(f"{label} [loaded, run {r['repeat'] + 1}]", r))
             for r in g["failed"]:
                 notes.append(f"{label} run {r['repeat'] + 1} failed: {r['error'].splitlines()[0]}")
+        if no_quiet:
+            notes.insert(0, "no quiet run, so no median, for " + ", ".join(no_quiet) + ": all loaded or failed")
         title = f"### {scene}" if markdown else f"== {scene} =="
         block = [title, "", format_table(SCENE_HEADERS, rows, markdown)] if rows else [title]
         ratio = ratio_lines(groups, scene)
