@@ -139,9 +139,9 @@ def test_table1_has_the_paper_columns():
     for col in ("avg divergenceSolve ms", "avg solvePDConstraints ms", "avg ms / step", "s wall / sim s",
                 "density err mean %", "worst %", "steps"):
         assert col in head
-    ipsph = next(line for line in text.splitlines() if "| IPSPH |" in line)
+    ipsph = next(line for line in text.splitlines() if "| IPSPH (median of 2) |" in line)
     assert "| 2.75 | 5.50 |" in ipsph  # mean phases of 10 and 12 ms steps: div 1/4, PD 1/2
-    dfsph = next(line for line in text.splitlines() if "| SPH-DFSPH |" in line)
+    dfsph = next(line for line in text.splitlines() if "| SPH-DFSPH (median of 2) |" in line)
     assert "| 1.80 | — |" in dfsph  # SPlisHSPlasH DFSPH has no solvePDConstraints
 
 
@@ -209,3 +209,8 @@ def test_from_json_reprints_saved_results(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "### S" in out and "| IPSPH (median of 2) |" in out and "meets 5 s" in out
     assert cli_main(["bench", "--from-json", str(tmp_path / "none.json")]) == 2
+
+
+def test_table1_shows_loaded_runs_marked():
+    text = report.table1(report.summarise(_rows(), 0.5), markdown=False)
+    assert "IPSPH [loaded, run 3]" in text and "IPSPH (median of 2)" in text
