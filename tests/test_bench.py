@@ -214,3 +214,10 @@ def test_from_json_reprints_saved_results(tmp_path, capsys):
 def test_table1_shows_loaded_runs_marked():
     text = report.table1(report.summarise(_rows(), 0.5), markdown=False)
     assert "IPSPH [loaded, run 3]" in text and "IPSPH (median of 2)" in text
+
+
+def test_table1_dragon_mesh_must_exist(tmp_path, capsys):
+    code = cli_main(["bench", "--table1", "--pipelines", "two_dragons", "--no-peer", "--repeats", "1",
+                     "--dragon-mesh", str(tmp_path / "Dragon_50k.obj")])
+    assert code == 2
+    assert "--dragon-mesh" in capsys.readouterr().err

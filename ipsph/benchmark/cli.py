@@ -65,8 +65,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "the paper's Table 1 columns")
     p.add_argument("--pipelines", nargs="+", choices=sorted(PIPELINES), default=None,
                    help="with --table1: which pipelines (default: all three)")
+    p.add_argument("--dragon-mesh", type=Path, metavar="OBJ",
+                   help="with --table1: SPlisHSPlasH's Dragon_50k.obj for both dragons of two_dragons.toml "
+                        "(default: the pipeline's relative path into shared/anchors/splishsplash/models)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                   help="scene override for our runs (repeatable), e.g. --set boundary.1.mesh=/path/Dragon_50k.obj")
+                   help="scene override for all our runs (repeatable), e.g. --set simulation.viscosity=0.02")
     p.add_argument("--markdown", action="store_true", help="print Markdown tables")
     p.add_argument("--json", type=Path, metavar="PATH", help="save every raw result as JSON")
     p.add_argument("--from-json", type=Path, metavar="PATH",
@@ -171,7 +174,14 @@ def bench_table1(args, peer: bool) -> tuple[str, list[dict]]:
     jobs = []
     for stem in args.pipelines or list(PIPELINES):
         path = pipeline_path(stem)
-        jobs += [("ours", path, m, stem, tuple(args.set)) for m in ("ipsph", "dfsph", "pf") if m in args.methods]
+        over = tuple(args.set)
+        if stem == "two_dragons" and args.dragon_mesh is not None:
+            mesh = Path(args.dragon_mesh).expanduser().resolve()
+            if not mesh.is_file():
+                raise ConfigError(f"--dragon-mesh {args.dragon_mesh} (resolved {mesh}) is not a file: pass "
+                                  f"SPlisHSPlasH's data/models/Dragon_50k.obj")
+            over = (f"boundary.1.mesh={mesh}", f"boundary.2.mesh={mesh}") + over
+        jobs += [("ours", path, m, stem, over) for m in ("ipsph", "dfsph", "pf") if m in args.methods]
         if peer:
             stock = resolve_scene(PIPELINES[stem], args.scene_dir)
             jobs += [("peer", stock, m, f"{stem} / {stock.stem}", ()) for m in PEER_METHODS]
