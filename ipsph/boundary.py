@@ -14,7 +14,7 @@ import numpy as np
 from numba import njit, prange
 
 from .kernels import w
-from .neighbours import Grid, cell_ids, counting_sort, gather_neighbours
+from .neighbours import CELLS_PER_SUPPORT, Grid, cell_ids, counting_sort, gather_neighbours
 
 
 @njit(parallel=True, cache=True)
@@ -51,7 +51,7 @@ class Boundary:
         psi = np.zeros(n)
         if n == 0:
             return psi
-        grid = Grid(self.x.min(axis=0), self.x.max(axis=0), self.h)
+        grid = Grid(self.x.min(axis=0), self.x.max(axis=0), self.h / CELLS_PER_SUPPORT)
         cells = np.empty(n, dtype=np.int64)
         cell_ids(self.x, grid.origin, 1.0 / grid.cell, grid.dims, cells)
         order = np.empty(n, dtype=np.int64)

@@ -86,7 +86,7 @@ class SolverConfig:
     ipsph_density_error_pct: float = 0.05
     ipsph_min_passes: int = 2
     ipsph_max_passes: int = 100
-    ipsph_warm_start: float = 0.5      # fraction of last step's multipliers to start from; 0 = off
+    ipsph_warm_start: float = 0.8      # fraction of last step's multipliers to start from; 0 = off
 
 
 @dataclass(frozen=True)

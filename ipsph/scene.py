@@ -141,7 +141,7 @@ PARAMS: tuple[Param, ...] = (
        "solver.ipsph_min_passes", lo=1, hi=100_000),
     _P("solver.ipsph.max_passes", "int", 100, "", "IPSPH: maximum PF passes per step.",
        "solver.ipsph_max_passes", lo=1, hi=100_000),
-    _P("solver.ipsph.warm_start", "float", 0.5, "", "IPSPH: fraction of the last step's PF "
+    _P("solver.ipsph.warm_start", "float", 0.8, "", "IPSPH: fraction of the last step's PF "
        "multipliers to start from (0 = off).", "solver.ipsph_warm_start", lo=0.0, hi=1.0),
     # -- [output] -------------------------------------------------------------------------------
     _P("output.folder", "path", Path("out"), "", "Output folder; a relative path resolves "

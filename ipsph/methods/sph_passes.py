@@ -164,6 +164,7 @@ def xsph(x, v, m, rho, xb, mb, nf, cf, nb, cb, h, zeta, v_out, drho):
         a0 = 0.0
         a1 = 0.0
         a2 = 0.0
+        dr = 0.0
         xi0, xi1, xi2 = x[i, 0], x[i, 1], x[i, 2]
         vi0, vi1, vi2 = v[i, 0], v[i, 1], v[i, 2]
         for n in range(cf[i]):
@@ -171,14 +172,25 @@ def xsph(x, v, m, rho, xb, mb, nf, cf, nb, cb, h, zeta, v_out, drho):
             d0 = xi0 - x[j, 0]
             d1 = xi1 - x[j, 1]
             d2 = xi2 - x[j, 2]
-            wij = (m[j] / rho[j]) * w(np.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
-            a0 += wij * (vi0 - v[j, 0])
-            a1 += wij * (vi1 - v[j, 1])
-            a2 += wij * (vi2 - v[j, 2])
-        drho[i] = _density_rate_i(i, x, v, m, xb, mb, nf, cf, nb, cb, h)
-        v_out[i, 0] = v[i, 0] - zeta * a0
-        v_out[i, 1] = v[i, 1] - zeta * a1
-        v_out[i, 2] = v[i, 2] - zeta * a2
+            r = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+            u0 = vi0 - v[j, 0]
+            u1 = vi1 - v[j, 1]
+            u2 = vi2 - v[j, 2]
+            wij = (m[j] / rho[j]) * w(r, h)
+            a0 += wij * u0
+            a1 += wij * u1
+            a2 += wij * u2
+            dr += m[j] * grad_w_factor(r, h) * (u0 * d0 + u1 * d1 + u2 * d2)
+        for n in range(cb[i]):
+            b = nb[i, n]
+            d0 = xi0 - xb[b, 0]
+            d1 = xi1 - xb[b, 1]
+            d2 = xi2 - xb[b, 2]
+            dr += mb[b] * grad_w_factor(np.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h) * (vi0 * d0 + vi1 * d1 + vi2 * d2)
+        drho[i] = dr
+        v_out[i, 0] = vi0 - zeta * a0
+        v_out[i, 1] = vi1 - zeta * a1
+        v_out[i, 2] = vi2 - zeta * a2
 
 
 @njit(cache=True)
