@@ -123,7 +123,12 @@ class Simulation:
         """Advance one step of `dt` (default: the CFL step) and check the state's health."""
         dt = self.dt_next if dt is None else float(dt)
         t0 = time.perf_counter()
-        rep = self.method.step(dt)
+        try:
+            rep = self.method.step(dt)
+        except NumericalFailure as exc:  # raised inside the step (e.g. the neighbour grid blew up)
+            self.time += dt
+            self.steps += 1
+            self._fail(first_unhealthy(self.state.x, self.state.v, self.domain[0], self.domain[1]), str(exc))
         self.time += dt
         self.steps += 1
         st = self.state
@@ -137,7 +142,12 @@ class Simulation:
         return StepStats(**vars(rep), step=self.steps, time=self.time, max_speed=vmax, kinetic_energy=ke,
                          dt_clamped=clamped)
 
-    def _fail(self, i: int):
+    def _fail(self, i: int, inner: str | None = None):
+        """Raise NumericalFailure naming step, time, particle id and quantity (i < 0: no particle found)."""
+        where = f"numerical failure at step {self.steps}, t = {self.time:.6g} s"
+        hint = "try a smaller time step (time_step.dt_max) or cfl_factor"
+        if i < 0:
+            raise NumericalFailure(f"{where}: {inner}; {hint}")
         x, v = self.state.x[i], self.state.v[i]
         pid = int(self.state.id[i])
         if not (np.all(np.isfinite(x)) and np.all(np.isfinite(v))):
@@ -145,8 +155,8 @@ class Simulation:
         else:
             what = f"left the domain at x = ({x[0]:.4g}, {x[1]:.4g}, {x[2]:.4g}) m"
         raise NumericalFailure(
-            f"numerical failure at step {self.steps}, t = {self.time:.6g} s: particle id {pid} {what} "
-            f"(|v| = {np.linalg.norm(v):.4g} m/s); try a smaller time step (time_step.dt_max) or cfl_factor")
+            f"{where}: particle id {pid} {what} (|v| = {np.linalg.norm(v):.4g} m/s)"
+            + (f" ({inner})" if inner else "") + f"; {hint}")
 
     def _landing_dt(self, t_target: float) -> tuple[float, bool]:
         """The next dt towards t_target: the CFL dt, or half / all of what remains (no slivers)."""
@@ -179,7 +189,8 @@ class Simulation:
         end_time = self.scene.end_time if end_time is None else end_time
         fps = out.fps if fps is None else fps
         every_step = out.every_step if every_step is None else every_step
-        frame = int(round(self.time * fps)) if not every_step else self.steps
+        # the last frame at or before now (a resumed run may stand between two frames)
+        frame = int(math.floor(self.time * fps + 1e-9)) if not every_step else self.steps
         if on_frame is not None and self.time == 0.0:
             on_frame(self, frame)
         if every_step:
