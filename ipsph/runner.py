@@ -1,10 +1,12 @@
 """`ipsph run`: one simulation writing a ParaView-ready output folder, and losing nothing.
 
-Order of business: check the output folder and the particle budget (bad input exits 2 before
-any large allocation), sample, write the boundary once, then per frame a VTU + the PVD
-(atomically) + a render, per step a stats row. SIGINT/SIGTERM finish the current step, write
-a final frame and exit 130; a numerical failure stops with exit 3; run.json always says
-how the run ended.
+Order of business: check the output folder, the particle budget and the radius against the
+geometry (bad input exits 2 before any large allocation), sample, write the boundary once,
+then per frame a VTU + the PVD (atomically) + a render (+ a checkpoint every
+output.checkpoint_interval), per step a stats row. SIGINT/SIGTERM finish the current step,
+write a final frame and a checkpoint and exit 130; a numerical failure stops with exit 3, a
+failed write (disk full) with exit 4; run.json always says how the run ended. `--resume`
+restores the checkpoint, drops frames and stats rows after it, and continues.
 """
 from __future__ import annotations
 
@@ -19,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import checkpoint as ckpt
 from . import io as out_io
 from .io import provenance, pvd, stats, vtu  # noqa: F401  (submodules used via out_io)
 from .errors import EXIT_INTERRUPTED, EXIT_OK, IpsphError, NumericalFailure, OutputError
@@ -57,6 +60,9 @@ def check_output_folder(out: Path, overwrite: bool, resume: bool) -> None:
     if (out / out_io.RUN_JSON).exists() and not (overwrite or resume):
         raise OutputError(f"output folder {out} holds an earlier run; pass --overwrite to replace it "
                           f"or --resume to continue it")
+    if resume and not (out / out_io.RUN_JSON).exists():
+        raise OutputError(f"--resume: output folder {out} (resolved {out.resolve()}) holds no earlier run "
+                          f"to continue; run without --resume")
     try:
         out.mkdir(parents=True, exist_ok=True)
         probe = out / f".ipsph-write-test-{os.getpid()}"
@@ -100,18 +106,42 @@ def check_size(scene: Scene, max_particles: int | None) -> int:
     return total
 
 
-def _extent_hint(spec) -> str:
+def check_geometry(scene: Scene) -> None:
+    """Refuse a particle radius too large for a fluid body: fewer than 2 particles across it (exit 2)."""
+    from .errors import ConfigError
+    d = 2.0 * scene.particle_radius
+    for i, spec in enumerate(scene.fluids):
+        ext = _fluid_extent(spec)
+        if ext is None:
+            continue
+        # box fluids: SPlisHSPlasH's round(extent / d) - 1 per axis; meshes: the lattice across the bounds
+        n = np.floor(ext / d + 0.5) - 1 if spec.shape == "box" else np.floor(ext / d)
+        if n.min() < 2:
+            a = int(np.argmin(n))
+            need = ext[a] / (5.0 if spec.shape == "box" else 4.0)
+            raise ConfigError(
+                f"fluid[{i}] '{spec.name}': simulation.particle_radius {scene.particle_radius} m is too large for "
+                f"its extent of {ext[a]:.4g} m along {'xyz'[a]} ({int(max(n[a], 0))} particle(s) across, at least 2 "
+                f"needed); use particle_radius <= {need:.3g} m (a tenth of that or less for useful results)")
+
+
+def _fluid_extent(spec) -> np.ndarray | None:
+    """Extent (m) of a fluid body after its transform's scale, or None when its mesh cannot be read."""
     if spec.shape == "box" and spec.box_min is not None:
-        ext = np.abs(np.subtract(spec.box_max, spec.box_min) * np.asarray(spec.transform.scale))
-        hint = f"; its extent is {ext[0]:.4g} x {ext[1]:.4g} x {ext[2]:.4g} m"
-    else:
-        try:
-            from .meshes import load_mesh, transform_mesh
-            b = np.asarray(transform_mesh(load_mesh(spec.mesh), spec.transform).bounds).reshape(3, 2)
-            ext = b[:, 1] - b[:, 0]
-            hint = f"; its mesh extent is {ext[0]:.4g} x {ext[1]:.4g} x {ext[2]:.4g} m"
-        except Exception:
-            return ""
+        return np.abs(np.subtract(spec.box_max, spec.box_min) * np.asarray(spec.transform.scale))
+    try:
+        from .meshes import load_mesh, transform_mesh
+        b = np.asarray(transform_mesh(load_mesh(spec.mesh), spec.transform).bounds).reshape(3, 2)
+    except Exception:  # the sampler reports unreadable meshes with the full story
+        return None
+    return b[:, 1] - b[:, 0]
+
+
+def _extent_hint(spec) -> str:
+    ext = _fluid_extent(spec)
+    if ext is None:
+        return ""
+    hint = f"; its {'mesh ' if spec.shape != 'box' else ''}extent is {ext[0]:.4g} x {ext[1]:.4g} x {ext[2]:.4g} m"
     if ext.max() > 100:
         hint += " (a mesh 1000x too large is probably in millimetres: scale it by 0.001)"
     return hint
@@ -119,29 +149,65 @@ def _extent_hint(spec) -> str:
 
 # -- the run ---------------------------------------------------------------------------------------
 class OutputFolder:
-    """Writes frames, the PVD, stats rows and run.json for one Simulation."""
+    """Writes frames, the PVD, stats rows, checkpoints and run.json for one Simulation.
 
-    def __init__(self, out: Path, sim: Simulation, scene: Scene, info: dict, render: bool, progress: bool):
+    With `resume` (a loaded checkpoint) the folder is continued: frames and renders after the
+    checkpoint are deleted and dropped from the PVD, stats rows after its step are cut.
+    """
+
+    def __init__(self, out: Path, sim: Simulation, scene: Scene, info: dict, render: bool, progress: bool,
+                 resume: ckpt.Checkpoint | None = None):
         self.out, self.sim, self.scene, self.info = out, sim, scene, info
         self.fields = scene.output.fields
+        self.checkpoint_interval = scene.output.checkpoint_interval
         (out / out_io.FRAMES_DIR).mkdir(parents=True, exist_ok=True)
-        b = sim.boundary
-        boundary_file = None
-        if b.n:
-            out_io.vtu.write_particles(out / out_io.BOUNDARY_VTU, b.x,
-                                       {"volume": b.psi, "id": np.arange(b.n, dtype=np.int64)}, 0.0)
-            boundary_file = out_io.BOUNDARY_VTU
+        if resume is None:
+            b = sim.boundary
+            boundary_file = None
+            if b.n:
+                out_io.vtu.write_particles(out / out_io.BOUNDARY_VTU, b.x,
+                                           {"volume": b.psi, "id": np.arange(b.n, dtype=np.int64)}, 0.0)
+                boundary_file = out_io.BOUNDARY_VTU
+            self.pvd = out_io.pvd.PvdSeries(out / out_io.RUN_PVD, boundary_file)
+            self.stats = out_io.stats.StatsWriter(out / out_io.STATS_CSV, STATS_COLUMNS)
+            self.frames, self.last_frame_time, self.solver_maxed = 0, None, 0
+            self.last_checkpoint_time = 0.0
+        else:
+            self.pvd = out_io.pvd.PvdSeries.load(out / out_io.RUN_PVD)
+            self.pvd.truncate_after(resume.time)
+            self.frames = int(resume.scalars["frames"])
+            self.last_frame_time = resume.scalars["last_frame_time"]
+            self.solver_maxed = int(resume.scalars["solver_maxed"])
+            self.last_checkpoint_time = resume.time
+            self._delete_frames_from(self.frames)
+            self.stats = out_io.stats.StatsWriter(out / out_io.STATS_CSV, STATS_COLUMNS,
+                                                  truncate_after_step=resume.steps)
         self.surface = self._write_surface()
-        self.pvd = out_io.pvd.PvdSeries(out / out_io.RUN_PVD, boundary_file)
-        self.stats = out_io.stats.StatsWriter(out / out_io.STATS_CSV, STATS_COLUMNS)
-        self.frames = 0
-        self.last_frame_time = None
         self.renderer = self._renderer() if render else None
         self.progress = progress
         self.t_start = time.perf_counter()
+        self.steps_start = sim.steps
         self.render_seconds = 0.0
         self.write_seconds = 0.0
         self.timings: dict[str, list[float]] = {}
+
+    def _delete_frames_from(self, first: int) -> None:
+        """Remove frame files (and their renders) numbered `first` and later: a resumed run rewrites them."""
+        for folder, pattern in ((out_io.FRAMES_DIR, "fluid_*.vtu"), (out_io.RENDERS_DIR, "frame_*.png")):
+            for f in (self.out / folder).glob(pattern):
+                index = f.stem.rsplit("_", 1)[-1]
+                if index.isdigit() and int(index) >= first:
+                    f.unlink(missing_ok=True)
+
+    def checkpoint(self, sim: Simulation) -> None:
+        """Write OUT/checkpoint.npz (atomically) with everything a bit-identical resume needs."""
+        import numba
+        t0 = time.perf_counter()
+        ckpt.save(self.out / ckpt.CHECKPOINT_FILE, sim, frames=self.frames, last_frame_time=self.last_frame_time,
+                  solver_maxed=self.solver_maxed, threads=numba.get_num_threads())
+        self.last_checkpoint_time = sim.time
+        self.info["checkpoint"] = {"file": ckpt.CHECKPOINT_FILE, "time": sim.time, "step": sim.steps}
+        self.write_seconds += time.perf_counter() - t0
 
     def _write_surface(self):
         if not self.scene.boundaries:
@@ -163,7 +229,8 @@ class OutputFolder:
         speed = max((float(np.linalg.norm(f.velocity)) for f in scene.fluids), default=0.0)
         bounds = self.info["domain_bounds"]
         top = float(sim.positions[:, 1].max()) if sim.n_fluid else bounds[3]
-        rng = scene.render.speed_range or render.default_speed_range(speed, scene.gravity, top, bounds[2])
+        rng = scene.render.speed_range or self.info.pop("render_speed_range", None) \
+            or render.default_speed_range(speed, scene.gravity, top, bounds[2])
         self.info["render"] = {**_asdict(scene.render), "enabled": True, "speed_range": list(rng)}
         return render.FrameRenderer(scene.render, bounds, scene.particle_radius, rng, self.surface,
                                     title=f"{scene.name} - {scene.method.value.upper()}")
@@ -190,6 +257,9 @@ class OutputFolder:
             self.render_seconds += time.perf_counter() - t1
         self.frames += 1
         self.last_frame_time = sim.time
+        interval = self.checkpoint_interval
+        if interval is not None and sim.time - self.last_checkpoint_time >= interval - 1e-9 * max(1.0, interval):
+            self.checkpoint(sim)
 
     def step(self, s: StepStats) -> None:
         row = {"step": s.step, "time": s.time, "dt": s.dt, "particles": self.sim.n_fluid,
@@ -203,10 +273,11 @@ class OutputFolder:
             row[f"ms_{p}"] = 1000 * s.timings.get(p, 0.0)
         for p, v in s.timings.items():
             self.timings.setdefault(p, []).append(1000 * v)
+        self.solver_maxed += s.solver_maxed
         self.stats.write(row)
         if self.progress:
             end = self.scene.end_time
-            rate = s.step / max(time.perf_counter() - self.t_start, 1e-9)
+            rate = (s.step - self.steps_start) / max(time.perf_counter() - self.t_start, 1e-9)
             sys.stderr.write(f"\r  t = {s.time:7.3f} / {end:.3f} s  frame {self.frames:4d}  step {s.step:6d}  "
                              f"density error {100 * s.density_error_mean:.3f} %  {rate:6.1f} steps/s ")
             sys.stderr.flush()
@@ -238,22 +309,33 @@ def run(scene: Scene, opts: RunOptions) -> int:
     from .scene import scene_to_dict
     out = opts.out_dir
     check_output_folder(out, opts.overwrite, opts.resume)
-    check_size(scene, opts.max_particles)
+    resume = _load_resume(out, scene) if opts.resume else None
+    if resume is None:
+        check_size(scene, opts.max_particles)  # first: it also runs the mesh checks (open, zero volume)
+        check_geometry(scene)
+    import numba
     if opts.threads:
-        import numba
         numba.set_num_threads(int(opts.threads))
     for w in scene.warnings:
         print(f"ipsph: warning: {w}", file=sys.stderr)
     t_setup = time.perf_counter()
-    fluid_x, fluid_v, boundary_x, notes = sample_scene(scene)
-    for note in notes:
-        print(f"ipsph: note: {note}", file=sys.stderr)
-    if len(fluid_x) == 0:
-        from .errors import ConfigError
-        raise ConfigError("the scene has no fluid particles after sampling (check [[fluid]] entries and "
-                          "that the fluid lies inside its container)")
-    sim = Simulation(scene, fluid_x, fluid_v, boundary_x)
-    import numba
+    if resume is None:
+        fluid_x, fluid_v, boundary_x, notes = sample_scene(scene)
+        for note in notes:
+            print(f"ipsph: note: {note}", file=sys.stderr)
+        if len(fluid_x) == 0:
+            from .errors import ConfigError
+            raise ConfigError("the scene has no fluid particles after sampling (check [[fluid]] entries and "
+                              "that the fluid lies inside its container)")
+        sim = Simulation(scene, fluid_x, fluid_v, boundary_x)
+    else:
+        sim = ckpt.restore(scene, resume)
+        fluid_x, boundary_x, notes = sim.positions, sim.boundary.x, []
+        threads = int(resume.scalars["threads"])
+        if threads != numba.get_num_threads():
+            print(f"ipsph: note: resuming with {numba.get_num_threads()} threads, the checkpoint was written with "
+                  f"{threads}: pass --threads {threads} for a continuation bit-identical to an uninterrupted run",
+                  file=sys.stderr)
     lo = np.minimum(fluid_x.min(axis=0), boundary_x.min(axis=0)) if len(boundary_x) else fluid_x.min(axis=0)
     hi = np.maximum(fluid_x.max(axis=0), boundary_x.max(axis=0)) if len(boundary_x) else fluid_x.max(axis=0)
     info = {"scene": scene_to_dict(scene), "scene_file": str(scene.source) if scene.source else None,
@@ -264,8 +346,12 @@ def run(scene: Scene, opts: RunOptions) -> int:
             "frames": 0, "steps": 0, "sim_time": 0.0, "wall_seconds": None, "threads": numba.get_num_threads(),
             "notes": notes, "warnings": list(scene.warnings), "versions": out_io.provenance.versions(),
             "started": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
+    if resume is not None:
+        now = info["started"]
+        info.update(_previous_info(out))
+        info["resumed"] = info.get("resumed", []) + [{"time": resume.time, "step": resume.steps, "at": now}]
     progress = sys.stderr.isatty() if opts.progress is None else opts.progress
-    folder = OutputFolder(out, sim, scene, info, opts.render and scene.render.enabled, progress)
+    folder = OutputFolder(out, sim, scene, info, opts.render and scene.render.enabled, progress, resume)
     info["setup_seconds"] = time.perf_counter() - t_setup
     _write_info(out, info, sim, folder)
     old = {s: signal.signal(s, _on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
@@ -273,34 +359,71 @@ def run(scene: Scene, opts: RunOptions) -> int:
     code, status = EXIT_OK, "completed"
     t0 = time.perf_counter()
     try:
-        sim.run(on_frame=folder.frame, on_step=folder.step)
-    except Interrupted:
-        folder.frame(sim, -1)  # the final frame at the interrupt time
-        code, status = EXIT_INTERRUPTED, "interrupted"
-        print(f"\nipsph: interrupted at t = {sim.time:.4g} s (step {sim.steps}); "
-              f"{folder.frames} frames are in {out}", file=sys.stderr)
+        try:
+            sim.run(on_frame=folder.frame, on_step=folder.step)
+        except Interrupted:
+            code, status = EXIT_INTERRUPTED, "interrupted"
+            folder.frame(sim, -1)  # the final frame at the interrupt time
+            folder.checkpoint(sim)
+            print(f"\nipsph: interrupted at t = {sim.time:.4g} s (step {sim.steps}); {folder.frames} frames are "
+                  f"in {out}; continue with the same command and --resume", file=sys.stderr)
     except NumericalFailure as exc:
         code, status = exc.exit_code, "failed"
         info["error"] = str(exc)
         print(f"\nipsph: error: {exc}; {folder.frames} finished frames are kept in {out}", file=sys.stderr)
-    except IpsphError as exc:
+    except IpsphError as exc:  # WriteError (disk full, ...): the .pvd still lists only complete frames
         code, status = exc.exit_code, "failed"
         info["error"] = str(exc)
-        print(f"\nipsph: error: {exc}", file=sys.stderr)
+        print(f"\nipsph: error: {exc}; the {folder.frames} frames listed in {out / out_io.RUN_PVD} are intact",
+              file=sys.stderr)
     finally:
         for s, h in old.items():
             signal.signal(s, h)
         folder.close()
         info.update(status=status, completed=status == "completed", exit_code=code,
                     wall_seconds=time.perf_counter() - t0, finished=time.strftime("%Y-%m-%dT%H:%M:%S%z"))
-        _write_info(out, info, sim, folder)
+        try:
+            _write_info(out, info, sim, folder)
+        except IpsphError as exc:  # e.g. the disk is still full: say so, keep the run's exit code
+            print(f"ipsph: warning: {exc}", file=sys.stderr)
     if status == "completed" and progress is not None:
         _summary(out, sim, folder, info)
+    if folder.solver_maxed and status != "failed":
+        print(f"ipsph: warning: {folder.solver_maxed} solves stopped at their iteration cap before reaching the "
+              f"tolerance (run.json solver_maxed, stats.csv solver_maxed); raise solver.*.max_iterations / "
+              f"max_passes or lower the time step", file=sys.stderr)
     return code
+
+
+def _load_resume(out: Path, scene: Scene) -> ckpt.Checkpoint:
+    """The checkpoint of the run in `out`, checked against `scene` (exit 2 when it does not fit)."""
+    ck = ckpt.load(out / ckpt.CHECKPOINT_FILE)
+    ckpt.check_compatible(ck, scene)
+    if ck.time >= scene.end_time * (1.0 - 1e-12):
+        raise OutputError(f"--resume: the checkpoint in {out} is at t = {ck.time:.6g} s, at or past "
+                          f"simulation.end_time = {scene.end_time:.6g} s; pass a later --end-time to continue")
+    if not (out / out_io.RUN_PVD).is_file() or not (out / out_io.STATS_CSV).is_file():
+        raise OutputError(f"--resume: {out} lacks {out_io.RUN_PVD} or {out_io.STATS_CSV} of the earlier run; "
+                          f"start afresh with --overwrite")
+    return ck
+
+
+def _previous_info(out: Path) -> dict:
+    """What a resumed run keeps from the earlier run.json: when it started, its resumes, its colours."""
+    try:
+        old = out_io.provenance.read_run_json(out / out_io.RUN_JSON)
+    except IpsphError:
+        return {}
+    keep = {k: old[k] for k in ("started", "resumed") if k in old}
+    rng = (old.get("render") or {}).get("speed_range")
+    if rng:
+        keep["render_speed_range"] = tuple(rng)
+    return keep
 
 
 def _write_info(out: Path, info: dict, sim: Simulation, folder: OutputFolder) -> None:
     info.update(frames=folder.frames, steps=sim.steps, sim_time=sim.time, clamped_steps=sim.clamped_steps,
+                solver_maxed=folder.solver_maxed,
                 timings_ms={p: float(np.median(v)) for p, v in folder.timings.items()},
                 render_seconds=folder.render_seconds, write_seconds=folder.write_seconds)
     out_io.provenance.write_run_json(out / out_io.RUN_JSON, info)
@@ -312,4 +435,6 @@ def _summary(out: Path, sim: Simulation, folder: OutputFolder, info: dict) -> No
     print(f"ipsph: {info['method']} {sim.n_fluid:,} fluid + {sim.n_boundary:,} boundary particles, "
           f"{sim.steps} steps to t = {sim.time:.3g} s in {wall:.1f} s ({per_sim:.2f} s per simulated second), "
           f"{folder.frames} frames in {out}/{out_io.RUN_PVD}"
-          + (f"; {sim.clamped_steps} steps hit dt_min" if sim.clamped_steps else ""), file=sys.stderr)
+          + (f"; {sim.clamped_steps} steps hit dt_min" if sim.clamped_steps else "")
+          + (f"; {folder.solver_maxed} solves hit their iteration cap" if folder.solver_maxed else ""),
+          file=sys.stderr)
