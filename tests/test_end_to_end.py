@@ -57,9 +57,12 @@ def test_pressure_is_physical_in_the_last_frame(default_run):
     m = meshio.read(sorted((default_run / "frames").glob("*.vtu"))[-1])
     p = m.point_data["pressure"]
     y = m.points[:, 1]
-    # water at rest-ish after 1 s: pressure is >= 0 and grows with depth (correlation < 0 with height)
+    # the flow is still moving at 1 s (hydrostatics are tested on the tank in test_physics.py),
+    # but pressure is never negative (compression-only constraint) and the deepest tenth of the
+    # fluid is on average under more pressure than the highest tenth
     assert p.min() >= 0.0
-    assert np.corrcoef(y, p)[0, 1] < -0.5
+    lo, hi = np.quantile(y, [0.1, 0.9])
+    assert p[y <= lo].mean() > 2 * p[y >= hi].mean()
 
 
 @pytest.mark.parametrize("scene,count", [("DamBreakModel.json", 6859), ("DoubleDamBreak.json", 4732)])
