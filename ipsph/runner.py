@@ -192,12 +192,16 @@ class OutputFolder:
         self.timings: dict[str, list[float]] = {}
 
     def _delete_frames_from(self, first: int) -> None:
-        """Remove frame files (and their renders) numbered `first` and later: a resumed run rewrites them."""
+        """Remove frame files (and their renders) numbered `first` and later: a resumed run rewrites them.
+        Temporary files a killed run left behind go too (nothing references them)."""
         for folder, pattern in ((out_io.FRAMES_DIR, "fluid_*.vtu"), (out_io.RENDERS_DIR, "frame_*.png")):
             for f in (self.out / folder).glob(pattern):
                 index = f.stem.rsplit("_", 1)[-1]
                 if index.isdigit() and int(index) >= first:
                     f.unlink(missing_ok=True)
+        for folder in (self.out, self.out / out_io.FRAMES_DIR, self.out / out_io.RENDERS_DIR):
+            for f in folder.glob(".*.tmp"):
+                f.unlink(missing_ok=True)
 
     def checkpoint(self, sim: Simulation) -> None:
         """Write OUT/checkpoint.npz (atomically) with everything a bit-identical resume needs."""
@@ -435,6 +439,4 @@ def _summary(out: Path, sim: Simulation, folder: OutputFolder, info: dict) -> No
     print(f"ipsph: {info['method']} {sim.n_fluid:,} fluid + {sim.n_boundary:,} boundary particles, "
           f"{sim.steps} steps to t = {sim.time:.3g} s in {wall:.1f} s ({per_sim:.2f} s per simulated second), "
           f"{folder.frames} frames in {out}/{out_io.RUN_PVD}"
-          + (f"; {sim.clamped_steps} steps hit dt_min" if sim.clamped_steps else "")
-          + (f"; {folder.solver_maxed} solves hit their iteration cap" if folder.solver_maxed else ""),
-          file=sys.stderr)
+          + (f"; {sim.clamped_steps} steps hit dt_min" if sim.clamped_steps else ""), file=sys.stderr)
