@@ -45,8 +45,10 @@ def _parser() -> argparse.ArgumentParser:
     rd.add_argument("--video", choices=("mp4", "gif"), nargs="?", const="mp4", help="also write a video")
     rd.add_argument("--fps", type=float, help="video frames per second (default: the run's)")
     rd.add_argument("--speed-range", type=float, nargs=2, metavar=("LO", "HI"),
-                    help="colour range in m/s (default: the run's maximum speed)")
-    rd.add_argument("--view", choices=("front", "side", "top", "iso"), help="named camera view")
+                    help="colour range in m/s (default: the range the run rendered with, else the "
+                         "run's maximum speed)")
+    rd.add_argument("--view", choices=("front", "back", "side", "top", "iso"),
+                    help="named camera view (replaces a camera stored in the run's scene)")
     rd.add_argument("--size", type=int, nargs=2, metavar=("W", "H"), help="image size in pixels")
 
     pl = sub.add_parser("plot", help="plot density/divergence error, iterations and timings of one or more runs")
@@ -80,10 +82,18 @@ def _run(args) -> int:
 
 
 def _render(args) -> int:
-    from .render import render_output
+    from .errors import InputError
+    from .render import gl_available, render_output
+    if not (args.out / "run.pvd").exists():
+        raise InputError(f"{args.out} (resolved {args.out.resolve()}) holds no run.pvd: "
+                         f"give the output folder of `ipsph run`")
+    ok, why = gl_available()
+    if not ok:
+        print(f"ipsph: error: cannot render: {why}", file=sys.stderr)
+        return 1
     over = {}
     if args.view:
-        over["view"] = args.view
+        over.update(view=args.view, camera_position=None, focal_point=None, view_up=None)
     if args.size:
         over["width"], over["height"] = args.size
     paths = render_output(args.out, speed_range=tuple(args.speed_range) if args.speed_range else None,

@@ -17,6 +17,7 @@ __all__ = ["plot_runs", "PHASES"]
 # stats.csv timing columns -> bar labels (the paper's phase names)
 PHASES = {
     "ms_neighbourSearch": "neighbourSearch",
+    "ms_densities": "densities",
     "ms_solvePDConstraints": "solvePDConstraints",
     "ms_divergenceSolve": "divergenceSolve",
     "ms_densitySolve": "densitySolve",

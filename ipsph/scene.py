@@ -126,8 +126,8 @@ PARAMS: tuple[Param, ...] = (
        "IPSPH): minimum iterations.", "solver.divergence_min_iterations", lo=0, hi=100_000),
     _P("solver.dfsph.divergence_max_iterations", "int", 100, "", "Divergence solve (DFSPH and "
        "IPSPH): maximum iterations.", "solver.divergence_max_iterations", lo=1, hi=100_000),
-    _P("solver.dfsph.divergence_solve", "bool", True, "", "Run the DFSPH divergence solve "
-       "(IPSPH always runs its own).", "solver.divergence_solve"),
+    _P("solver.dfsph.divergence_solve", "bool", True, "", "Run the divergence solve (DFSPH's, and "
+       "IPSPH's Algorithm 1; false turns both off, for experiments).", "solver.divergence_solve"),
     # -- [solver.pf] ----------------------------------------------------------------------------
     _P("solver.pf.stiffness", "float", 50_000.0, "", "Projective Fluids constraint stiffness "
        "k_s (PF and IPSPH).", "solver.pf_stiffness", lo=0.0, hi=1e12, lo_open=True),
@@ -157,7 +157,8 @@ PARAMS: tuple[Param, ...] = (
        "checkpoints. auto: no checkpoints.", "output.checkpoint_interval", lo=0.0, hi=1e6,
        lo_open=True, optional=True),
     # -- [render] -------------------------------------------------------------------------------
-    _P("render.enabled", "bool", True, "", "Render frames and a video after the run.",
+    _P("render.enabled", "bool", True, "", "Render a PNG of every frame during the run (`--no-render` turns it off; "
+       "`ipsph render OUT --video` makes a video afterwards).",
        "render.enabled"),
     _P("render.width", "int", 1280, "px", "Image width.", "render.width", lo=16, hi=16384),
     _P("render.height", "int", 720, "px", "Image height.", "render.height", lo=16, hi=16384),

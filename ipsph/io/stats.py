@@ -3,7 +3,8 @@
 Columns the runner writes (plots use these names): step, time, dt, particles,
 density_error_mean_pct, density_error_max_pct, divergence_error_pct, pd_passes,
 divergence_iterations, density_iterations, max_speed, kinetic_energy, dt_clamped (0/1),
-ms_step, ms_neighbourSearch, ms_solvePDConstraints, ms_divergenceSolve, ms_densitySolve, ms_xsph.
+solver_maxed, ms_step, ms_neighbourSearch, ms_densities, ms_solvePDConstraints, ms_xsph,
+ms_divergenceSolve, ms_densitySolve.
 """
 from __future__ import annotations
 
@@ -21,8 +22,8 @@ __all__ = ["StatsWriter", "read_stats", "STATS_COLUMNS"]
 STATS_COLUMNS = (
     "step", "time", "dt", "particles", "density_error_mean_pct", "density_error_max_pct",
     "divergence_error_pct", "pd_passes", "divergence_iterations", "density_iterations",
-    "max_speed", "kinetic_energy", "dt_clamped", "ms_step", "ms_neighbourSearch",
-    "ms_solvePDConstraints", "ms_divergenceSolve", "ms_densitySolve", "ms_xsph",
+    "max_speed", "kinetic_energy", "dt_clamped", "solver_maxed", "ms_step", "ms_neighbourSearch",
+    "ms_densities", "ms_solvePDConstraints", "ms_xsph", "ms_divergenceSolve", "ms_densitySolve",
 )
 
 
