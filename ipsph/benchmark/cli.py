@@ -5,6 +5,7 @@
     ipsph bench --scaling 10000 100000 1000000    # ms/step, us per particle-step, bytes per particle
     ipsph bench --first-frame                    # seconds to the first frame, cold and warm Numba cache
     ipsph bench --table1                         # issue 5: the paper's Table 1 on pipelines/*.toml
+    ipsph bench --figure4 fig4 --end-time 1.5     # issue 5: Figure 4, IPSPH beside PF, and their errors
 
 Every simulation runs in its own worker process (peak RSS per method) with the same thread count
 (NUMBA_NUM_THREADS for ours, OMP_NUM_THREADS for SPlisHSPlasH), in the order
@@ -63,6 +64,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--table1", action="store_true",
                    help="issue 5: IPSPH, DFSPH and PF on pipelines/*.toml (and SPlisHSPlasH on its stock scenes), "
                         "the paper's Table 1 columns")
+    p.add_argument("--figure4", type=Path, metavar="OUT",
+                   help="issue 5: the paper's Figure 4 - breaking dam, IPSPH beside PF at the same times, "
+                        "rendered side by side into OUT, plus their density error against time "
+                        "(uses --end-time, default here 1.0, and --threads)")
     p.add_argument("--pipelines", nargs="+", choices=sorted(PIPELINES), default=None,
                    help="with --table1: which pipelines (default: all three)")
     p.add_argument("--dragon-mesh", type=Path, metavar="OBJ",
@@ -282,6 +287,10 @@ def main(args) -> int:
         print(reprint(args.from_json, args.markdown, args.max_load))
         return 0
     _check_args(args)
+    if args.figure4 is not None:
+        from .figure4 import figure4, print_summary
+        print_summary(figure4(args.figure4, args.end_time, args.threads, args.set))
+        return 0
     info = machine_info()
     out: dict = {"machine": info, "threads": args.threads, "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
                  "args": {k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()
