@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -106,7 +107,7 @@ def load(path: Path) -> Checkpoint:
         fp = str(arrays.pop("fingerprint"))
         scene = json.loads(str(arrays.pop("scene_json")))
         version = str(arrays.pop("version"))
-    except (OSError, ValueError, KeyError) as exc:
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
         raise OutputError(f"cannot read checkpoint {path} (resolved {path.resolve()}): "
                           f"{' '.join(str(exc).split()) or type(exc).__name__}; start afresh with --overwrite") from exc
     if scalars.get("format") != FORMAT:

@@ -413,12 +413,12 @@ def _load_resume(out: Path, scene: Scene) -> ckpt.Checkpoint:
 
 
 def _previous_info(out: Path) -> dict:
-    """What a resumed run keeps from the earlier run.json: when it started, its resumes, its colours."""
+    """What a resumed run keeps from the earlier run.json: when it started, its resumes, its camera and colours."""
     try:
         old = out_io.provenance.read_run_json(out / out_io.RUN_JSON)
     except IpsphError:
         return {}
-    keep = {k: old[k] for k in ("started", "resumed") if k in old}
+    keep = {k: old[k] for k in ("started", "resumed", "domain_bounds") if k in old}
     rng = (old.get("render") or {}).get("speed_range")
     if rng:
         keep["render_speed_range"] = tuple(rng)

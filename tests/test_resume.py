@@ -128,6 +128,13 @@ def test_checkpoint_from_another_version_is_refused(stopped, capsys, monkeypatch
     assert code == 2 and f"written by ipsph {written_by}, this is 99.0.0" in err, err
 
 
+def test_corrupt_checkpoint_is_refused(stopped, capsys):
+    ck = stopped / "checkpoint.npz"
+    ck.write_bytes(ck.read_bytes()[:1000])  # torn (it is written atomically, but disks lie)
+    code, err = run_cli(capsys, stopped, "--end-time", str(T), "--resume")
+    assert code == 2 and "cannot read checkpoint" in err and "--overwrite" in err, err
+
+
 def test_resume_needs_a_later_end_time(stopped, capsys):
     code, err = run_cli(capsys, stopped, "--end-time", "0.08", "--resume")
     assert code == 2 and "--end-time" in err and "t = 0.08 s" in err, err
