@@ -5,7 +5,8 @@ A checkpoint is one .npz written atomically (temporary file, fsync, rename) hold
     state.<name>      every per-particle array of ParticleState (x, v, m, id, warm starts, pressure)
     boundary.*        boundary x, psi, m in their current (cell-sorted) order
     grid.*            the neighbour grid (origin, cell, dims) and the list strides
-    scalars           time, steps, dt_next, dt_prev, clamped_steps, solver_maxed, frames, threads
+    scalars           time, steps, dt_next (and whether it was clamped), dt_prev, clamped_steps,
+                      solver_maxed, frames, threads
     fingerprint       sha256 of the scene without output/render settings, name, source, end_time
     scene_json        that scene dict (to name what changed when a fingerprint differs)
     version           ipsph.__version__
@@ -81,6 +82,7 @@ def save(path: Path, sim, *, frames: int, last_frame_time: float | None, solver_
         data.update({"grid.origin": g.origin, "grid.cell": np.float64(g.cell), "grid.dims": g.dims})
     scalars = {"format": FORMAT, "time": sim.time, "steps": sim.steps, "dt_next": sim.dt_next,
                "dt_prev": sim.method.dt_prev, "clamped_steps": int(sim.clamped_steps),
+               "next_clamped": bool(sim._clamped),
                "solver_maxed": int(solver_maxed), "frames": int(frames), "last_frame_time": last_frame_time,
                "threads": int(threads), "k_fluid": sim.search.k_fluid, "k_boundary": sim.search.k_boundary,
                "method": sim.scene.method.value}
@@ -185,6 +187,7 @@ def restore(scene: Scene, ck: Checkpoint):
     sim.steps = int(s["steps"])
     sim.clamped_steps = int(s["clamped_steps"])
     sim.dt_next = float(s["dt_next"])
+    sim._clamped = bool(s.get("next_clamped", False))
     dt_prev = s["dt_prev"]
     sim.method.dt_prev = None if dt_prev is None else float(dt_prev)
     sim.method.prepare()

@@ -264,7 +264,7 @@ class FrameRenderer:
 
         if surface is not None and surface.n_points:
             p.add_mesh(surface, color=SURFACE_COLOUR, opacity=SURFACE_OPACITY, smooth_shading=False,
-                       show_scalar_bar=False, lighting=True)
+                       show_scalar_bar=False, lighting=True, culling="front")
             edges = surface.extract_feature_edges(boundary_edges=True, feature_edges=True,
                                                   manifold_edges=False, feature_angle=40)
             if edges.n_points:

@@ -21,6 +21,8 @@ NICENESS = 5          # the solver keeps priority over the renderer
 
 
 def _worker(jobs, results, config, bounds, radius, speed_range, surface_file, title):
+    # one llvmpipe thread: the solver has the cores; llvmpipe's own threads cost more CPU than they save
+    os.environ.setdefault("LP_NUM_THREADS", "1")
     try:
         os.nice(NICENESS)
     except OSError:  # pragma: no cover - not permitted on some systems

@@ -236,8 +236,10 @@ class OutputFolder:
         rng = scene.render.speed_range or self.info.pop("render_speed_range", None) \
             or render.default_speed_range(speed, scene.gravity, top, bounds[2])
         self.info["render"] = {**_asdict(scene.render), "enabled": True, "speed_range": list(rng)}
-        return render.FrameRenderer(scene.render, bounds, scene.particle_radius, rng, self.surface,
-                                    title=f"{scene.name} - {scene.method.value.upper()}")
+        from .render_worker import BackgroundRenderer
+        surface = self.out / out_io.BOUNDARY_SURFACE if self.surface is not None else None
+        return BackgroundRenderer(scene.render, bounds, scene.particle_radius, rng, surface,
+                                  title=f"{scene.name} - {scene.method.value.upper()}")
 
     def frame(self, sim: Simulation, k: int) -> None:
         t0 = time.perf_counter()
@@ -257,8 +259,9 @@ class OutputFolder:
         self.write_seconds += t1 - t0
         if self.renderer is not None:
             png = self.out / out_io.RENDERS_DIR / f"frame_{self.frames:06d}.png"
-            self.renderer.render(sim.positions, sim.velocities, png, time=sim.time)
-            self.render_seconds += time.perf_counter() - t1
+            if not self.renderer.submit(sim.positions, sim.velocities, png, sim.time):
+                self._render_failed()
+            self.render_seconds += time.perf_counter() - t1  # time the solver waited for renders
         self.frames += 1
         self.last_frame_time = sim.time
         interval = self.checkpoint_interval
@@ -288,12 +291,23 @@ class OutputFolder:
         if _STOP["signal"]:
             raise Interrupted()
 
+    def _render_failed(self) -> None:
+        why = self.renderer.error or "the render process stopped"
+        print(f"\nipsph: warning: renders stopped ({why}); the simulation carries on", file=sys.stderr)
+        self.info["render"] = {**self.info.get("render", {}), "enabled": False, "skipped": why}
+        self.renderer.terminate()
+        self.renderer = None
+
     def close(self) -> None:
         if self.progress:
             sys.stderr.write("\n")
         self.stats.close()
         if self.renderer is not None:
-            self.renderer.close()
+            t0 = time.perf_counter()
+            self.renderer.close()  # the frames still in flight
+            self.render_seconds += time.perf_counter() - t0
+            if self.renderer.error:
+                self._render_failed()
 
 
 _STOP = {"signal": None}

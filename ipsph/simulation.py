@@ -91,7 +91,7 @@ class Simulation:
         self.domain = self._domain(boundary_x)
         self.method.prepare()
         vmax, _ = speed_energy(self.state.v, self.state.m)
-        self.dt_next, _ = self._cfl(vmax)
+        self.dt_next, self._clamped = self._cfl(vmax)
         if ts.dt_initial is not None:
             self.dt_next = min(ts.dt_initial, self.dt_max)
 
@@ -103,7 +103,7 @@ class Simulation:
         if isinstance(scene, (str, Path)):
             scene = load_scene(Path(scene), list(overrides))
         elif isinstance(scene, dict):
-            scene = scene_from_dict(scene, Path.cwd(), "scene")
+            scene = scene_from_dict(scene, Path.cwd())
         fluid_x, fluid_v, boundary_x, _ = sample_scene(scene)
         return cls(scene, fluid_x, fluid_v, boundary_x)
 
@@ -136,8 +136,9 @@ class Simulation:
         if bad >= 0:
             self._fail(bad)
         vmax, ke = speed_energy(st.v, st.m)
-        self.dt_next, clamped = self._cfl(vmax)
+        clamped = self._clamped  # this step's CFL value fell below dt_min
         self.clamped_steps += clamped
+        self.dt_next, self._clamped = self._cfl(vmax)
         rep.timings["step"] = time.perf_counter() - t0
         return StepStats(**vars(rep), step=self.steps, time=self.time, max_speed=vmax, kinetic_energy=ke,
                          dt_clamped=clamped)
@@ -205,7 +206,10 @@ class Simulation:
             self.advance_to(frame / fps, on_step)
             if on_frame is not None:
                 on_frame(self, frame)
-        self.advance_to(end_time, on_step)
+        if self._before(end_time):  # end_time is not on the frame grid: its state is a frame too
+            self.advance_to(end_time, on_step)
+            if on_frame is not None:
+                on_frame(self, frame + 1)
 
     # -- particle arrays (current order; `ids` maps them to the initial numbering) -------------
     @property

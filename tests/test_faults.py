@@ -154,8 +154,6 @@ def test_disk_full_while_writing_a_frame(tmp_path, capsys, monkeypatch):
     assert info["status"] == "failed" and info["exit_code"] == 4 and info["frames"] == 2
 
 
-@pytest.mark.xfail(strict=True, reason="ipsph/io/vtu.py imports vtkErrorCode from vtkCommonCore (it lives in "
-                                       "vtkCommonMisc), so the reason reads as an ImportError; io owner to fix")
 def test_disk_full_message_names_the_reason(tmp_path, capsys, monkeypatch):
     full_disk_on_third_frame(monkeypatch)
     code, err = run_cli(capsys, tmp_path / "out", "--end-time", "0.2")

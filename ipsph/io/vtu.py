@@ -105,7 +105,7 @@ def _write(writer, data, path: Path, compress: bool, what: str) -> int:
         ok = writer.Write()
         code = writer.GetErrorCode()
         if not ok or code != 0 or errors.messages:
-            from vtkmodules.vtkCommonCore import vtkErrorCode
+            from vtkmodules.vtkCommonMisc import vtkErrorCode
 
             why = vtkErrorCode.GetStringFromErrorCode(code) if code else ""
             msg = errors.messages[-1].strip().splitlines()[-1] if errors.messages else ""

@@ -69,6 +69,21 @@ class ProjectiveMethod(Method):
         self.scratch_x = np.zeros((self.state.n, 3))
         self.state.zeros("pd_lambda")  # Lam: the step's accumulated multipliers (pressure, warm start)
 
+    def prepare(self) -> None:
+        """Densities at the current positions, so frame 0 carries them.
+
+        The particle order is left alone (a resumed run must continue exactly as an
+        uninterrupted one): the densities are computed on a sorted copy and scattered back.
+        """
+        st = self.state
+        perm = self.search.update(st.x)
+        xb, mb, nf, cf, nb, cb = self.lists()
+        density_factor_lambda(np.ascontiguousarray(st.x[perm]), np.ascontiguousarray(st.m[perm]), xb, mb,
+                              nf, cf, nb, cb, self.h, self.rho0, self.rho, self.alpha, self.lam, self.err,
+                              self.n_nbrs)
+        for a in (self.rho, self.alpha, self.lam, self.err, self.n_nbrs):
+            a[perm] = a.copy()
+
     def inertial_target(self, dt: float) -> np.ndarray:
         """s = x + dt v + dt^2 g becomes the current position; returns x^n in the new order."""
         st = self.state
