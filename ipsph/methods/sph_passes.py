@@ -5,6 +5,14 @@ Every pass is a gather: `prange` over fluid particles i, reading neighbours j (f
 positions and per-particle inputs, the neighbour lists (nf, cf: fluid indices and counts;
 nb, cb: boundary), scalars, outputs last. Notation: x_ij = x_i - x_j, r_ij = |x_ij|,
 grad W_ij = g(r_ij) x_ij.
+
+Each pass works in two stages per particle: first it gathers what it needs of its neighbours
+(x_ij and one or two per-neighbour scalars) into a small per-thread buffer, then it evaluates
+the kernel over that contiguous buffer. The second loop has no indirection, so LLVM turns it
+into SIMD code (the kernel's sqrt, division and polynomial on 4 neighbours at once): twice as
+fast per pass as one scalar loop that does both. Particles are processed in CHUNKS blocks (one
+scratch buffer each); each particle is handled by one thread from start to end, so the result
+does not depend on the thread count.
 """
 import numpy as np
 from numba import njit, prange
@@ -12,6 +20,58 @@ from numba import njit, prange
 from ..kernels import grad_w_factor, w
 
 FAST = {"contract", "arcp", "reassoc"}  # no nnan/ninf: NaN checks keep working
+
+# buffer rows (per thread): x_ij components, then per-neighbour scalars
+DX, DY, DZ, C0, C1, C2, C3 = 0, 1, 2, 3, 4, 5, 6
+
+
+CHUNKS = 64  # blocks of particles per pass, each with its own scratch buffer
+
+
+@njit(inline="always")
+def _buffers(rows, nf, nb):
+    """One (rows, K_f + K_b) scratch block per chunk of particles (no thread ids: cacheable)."""
+    return np.empty((min(nf.shape[0], CHUNKS), rows, nf.shape[1] + nb.shape[1]))
+
+
+@njit(inline="always")
+def _chunk(c, n_chunks, n):
+    """Particle range [lo, hi) of chunk c."""
+    return c * n // n_chunks, (c + 1) * n // n_chunks
+
+
+@njit(inline="always")
+def _gather_x(i, x, xb, nf, cf, nb, cb, buf):
+    """buf[DX..DZ, :n_f + n_b] = x_i - x_j (fluid first, then boundary); returns (n_f, n_b)."""
+    n_f = cf[i]
+    n_b = cb[i]
+    xi0, xi1, xi2 = x[i, 0], x[i, 1], x[i, 2]
+    for k in range(n_f):
+        j = nf[i, k]
+        buf[DX, k] = xi0 - x[j, 0]
+        buf[DY, k] = xi1 - x[j, 1]
+        buf[DZ, k] = xi2 - x[j, 2]
+    for k in range(n_b):
+        b = nb[i, k]
+        buf[DX, n_f + k] = xi0 - xb[b, 0]
+        buf[DY, n_f + k] = xi1 - xb[b, 1]
+        buf[DZ, n_f + k] = xi2 - xb[b, 2]
+    return n_f, n_b
+
+
+@njit(inline="always", fastmath=FAST)
+def _weighted_gradient(n, buf, row, h):
+    """sum_k buf[row, k] grad W(x_ik) over a gathered neighbourhood (the vectorised loop)."""
+    a0 = 0.0
+    a1 = 0.0
+    a2 = 0.0
+    for k in range(n):
+        d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
+        f = buf[row, k] * grad_w_factor(np.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
+        a0 += f * d0
+        a1 += f * d1
+        a2 += f * d2
+    return a0, a1, a2
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)
@@ -26,72 +86,66 @@ def density_factor_lambda(x, m, xb, mb, nf, cf, nb, cb, h, rho0, rho, alpha, lam
         err_i   = C_i;  n_nbrs_i = |{j : r_ij < H}| + |{b : r_ib < H}|
     """
     w0 = w(0.0, h)
-    for i in prange(x.shape[0]):
-        xi0 = x[i, 0]
-        xi1 = x[i, 1]
-        xi2 = x[i, 2]
-        rho_i = m[i] * w0
-        g0 = 0.0
-        g1 = 0.0
-        g2 = 0.0
-        s2 = 0.0
-        nn = 0
-        for k in range(cf[i]):
-            j = nf[i, k]
-            d0 = xi0 - x[j, 0]
-            d1 = xi1 - x[j, 1]
-            d2 = xi2 - x[j, 2]
-            r = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-            if r < h:
-                nn += 1
-            rho_i += m[j] * w(r, h)
-            f = m[j] * grad_w_factor(r, h)
-            g0 += f * d0
-            g1 += f * d1
-            g2 += f * d2
-            s2 += f * f * (d0 * d0 + d1 * d1 + d2 * d2)
-        for k in range(cb[i]):
-            b = nb[i, k]
-            d0 = xi0 - xb[b, 0]
-            d1 = xi1 - xb[b, 1]
-            d2 = xi2 - xb[b, 2]
-            r = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-            if r < h:
-                nn += 1
-            rho_i += mb[b] * w(r, h)
-            f = mb[b] * grad_w_factor(r, h)
-            g0 += f * d0
-            g1 += f * d1
-            g2 += f * d2
-        sum_sq = g0 * g0 + g1 * g1 + g2 * g2 + s2
-        rho[i] = rho_i
-        alpha[i] = 1.0 / max(sum_sq, 1e-5)
-        c = max(rho_i / rho0 - 1.0, 0.0)
-        err[i] = c
-        lam[i] = -c / (sum_sq / (rho0 * rho0) + 1e-6)
-        n_nbrs[i] = nn
+    bufs = _buffers(5, nf, nb)
+    for c in prange(bufs.shape[0]):
+        buf = bufs[c]
+        lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
+        for i in range(lo, hi):
+            n_f, n_b = _gather_x(i, x, xb, nf, cf, nb, cb, buf)
+            for k in range(n_f):
+                buf[C0, k] = m[nf[i, k]]
+                buf[C1, k] = 1.0  # fluid neighbours enter sum_j |m_j grad W_ij|^2
+            for k in range(n_b):
+                buf[C0, n_f + k] = mb[nb[i, k]]
+                buf[C1, n_f + k] = 0.0
+            rho_i = m[i] * w0
+            g0 = 0.0
+            g1 = 0.0
+            g2 = 0.0
+            s2 = 0.0
+            nn = 0.0
+            for k in range(n_f + n_b):
+                d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
+                r2 = d0 * d0 + d1 * d1 + d2 * d2
+                r = np.sqrt(r2)
+                mk = buf[C0, k]
+                rho_i += mk * w(r, h)
+                f = mk * grad_w_factor(r, h)
+                g0 += f * d0
+                g1 += f * d1
+                g2 += f * d2
+                s2 += buf[C1, k] * f * f * r2
+                nn += 1.0 if r < h else 0.0
+            sum_sq = g0 * g0 + g1 * g1 + g2 * g2 + s2
+            rho[i] = rho_i
+            alpha[i] = 1.0 / max(sum_sq, 1e-5)
+            c = max(rho_i / rho0 - 1.0, 0.0)
+            err[i] = c
+            lam[i] = -c / (sum_sq / (rho0 * rho0) + 1e-6)
+            n_nbrs[i] = int(nn)
 
 
 @njit(inline="always", fastmath=FAST)
-def _density_rate_i(i, x, v, m, xb, mb, nf, cf, nb, cb, h):
+def _density_rate(i, x, v, m, xb, mb, nf, cf, nb, cb, h, buf):
     """D rho_i / Dt = sum_j m_j (v_i - v_j) . grad W_ij + sum_b m_b v_i . grad W_ib   [BK17 eq. 4]."""
-    xi0, xi1, xi2 = x[i, 0], x[i, 1], x[i, 2]
+    n_f, n_b = _gather_x(i, x, xb, nf, cf, nb, cb, buf)
     vi0, vi1, vi2 = v[i, 0], v[i, 1], v[i, 2]
-    drho = 0.0
-    for k in range(cf[i]):
+    for k in range(n_f):
         j = nf[i, k]
-        d0 = xi0 - x[j, 0]
-        d1 = xi1 - x[j, 1]
-        d2 = xi2 - x[j, 2]
-        f = m[j] * grad_w_factor(np.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
-        drho += f * ((vi0 - v[j, 0]) * d0 + (vi1 - v[j, 1]) * d1 + (vi2 - v[j, 2]) * d2)
-    for k in range(cb[i]):
-        b = nb[i, k]
-        d0 = xi0 - xb[b, 0]
-        d1 = xi1 - xb[b, 1]
-        d2 = xi2 - xb[b, 2]
-        f = mb[b] * grad_w_factor(np.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
-        drho += f * (vi0 * d0 + vi1 * d1 + vi2 * d2)
+        buf[C0, k] = m[j]
+        buf[C1, k] = vi0 - v[j, 0]
+        buf[C2, k] = vi1 - v[j, 1]
+        buf[C3, k] = vi2 - v[j, 2]
+    for k in range(n_b):
+        buf[C0, n_f + k] = mb[nb[i, k]]
+        buf[C1, n_f + k] = vi0
+        buf[C2, n_f + k] = vi1
+        buf[C3, n_f + k] = vi2
+    drho = 0.0
+    for k in range(n_f + n_b):
+        d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
+        f = buf[C0, k] * grad_w_factor(np.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
+        drho += f * (buf[C1, k] * d0 + buf[C2, k] * d1 + buf[C3, k] * d2)
     return drho
 
 
@@ -99,22 +153,31 @@ def _density_rate_i(i, x, v, m, xb, mb, nf, cf, nb, cb, h):
 def divergence_residual(x, v, m, xb, mb, nf, cf, nb, cb, h, alpha, n_nbrs, dt, drho, k):
     """Divergence-solve residual and stiffness [BK17 Alg. 2]:
     drho_i = max(D rho_i/Dt, 0), zero for particles with < 20 neighbours; k_i = alpha_i drho_i / dt."""
-    for i in prange(x.shape[0]):
-        d = 0.0
-        if n_nbrs[i] >= 20:
-            d = max(_density_rate_i(i, x, v, m, xb, mb, nf, cf, nb, cb, h), 0.0)
-        drho[i] = d
-        k[i] = alpha[i] * d / dt
+    bufs = _buffers(7, nf, nb)
+    for c in prange(bufs.shape[0]):
+        buf = bufs[c]
+        lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
+        for i in range(lo, hi):
+            d = 0.0
+            if n_nbrs[i] >= 20:
+                d = max(_density_rate(i, x, v, m, xb, mb, nf, cf, nb, cb, h, buf), 0.0)
+            drho[i] = d
+            k[i] = alpha[i] * d / dt
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)
 def density_residual(x, v, m, xb, mb, nf, cf, nb, cb, h, rho, alpha, rho0, dt, rho_err, k):
     """Density-solve residual and stiffness [BK17 Alg. 3]:
     rho*_i = max(rho_i + dt D rho_i/Dt, rho0);  rho_err_i = rho*_i - rho0;  k_i = alpha_i rho_err_i / dt^2."""
-    for i in prange(x.shape[0]):
-        e = max(rho[i] + dt * _density_rate_i(i, x, v, m, xb, mb, nf, cf, nb, cb, h), rho0) - rho0
-        rho_err[i] = e
-        k[i] = alpha[i] * e / (dt * dt)
+    bufs = _buffers(7, nf, nb)
+    for c in prange(bufs.shape[0]):
+        buf = bufs[c]
+        lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
+        for i in range(lo, hi):
+            rate = _density_rate(i, x, v, m, xb, mb, nf, cf, nb, cb, h, buf)
+            e = max(rho[i] + dt * rate, rho0) - rho0
+            rho_err[i] = e
+            k[i] = alpha[i] * e / (dt * dt)
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)
@@ -123,34 +186,23 @@ def apply_stiffness(x, m, xb, mb, nf, cf, nb, cb, h, k, dt, v, k_total):
 
     In place: iteration i reads k of its neighbours and writes v_i, k_total_i only.
     """
-    for i in prange(x.shape[0]):
-        a0 = 0.0
-        a1 = 0.0
-        a2 = 0.0
-        ki = k[i]
-        xi0, xi1, xi2 = x[i, 0], x[i, 1], x[i, 2]
-        for n in range(cf[i]):
-            j = nf[i, n]
-            d0 = xi0 - x[j, 0]
-            d1 = xi1 - x[j, 1]
-            d2 = xi2 - x[j, 2]
-            f = m[j] * (ki + k[j]) * grad_w_factor(np.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
-            a0 += f * d0
-            a1 += f * d1
-            a2 += f * d2
-        for n in range(cb[i]):
-            b = nb[i, n]
-            d0 = xi0 - xb[b, 0]
-            d1 = xi1 - xb[b, 1]
-            d2 = xi2 - xb[b, 2]
-            f = mb[b] * ki * grad_w_factor(np.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
-            a0 += f * d0
-            a1 += f * d1
-            a2 += f * d2
-        v[i, 0] -= dt * a0
-        v[i, 1] -= dt * a1
-        v[i, 2] -= dt * a2
-        k_total[i] += ki
+    bufs = _buffers(4, nf, nb)
+    for c in prange(bufs.shape[0]):
+        buf = bufs[c]
+        lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
+        for i in range(lo, hi):
+            n_f, n_b = _gather_x(i, x, xb, nf, cf, nb, cb, buf)
+            ki = k[i]
+            for n in range(n_f):
+                j = nf[i, n]
+                buf[C0, n] = m[j] * (ki + k[j])
+            for n in range(n_b):
+                buf[C0, n_f + n] = mb[nb[i, n]] * ki
+            a0, a1, a2 = _weighted_gradient(n_f + n_b, buf, C0, h)
+            v[i, 0] -= dt * a0
+            v[i, 1] -= dt * a1
+            v[i, 2] -= dt * a2
+            k_total[i] += ki
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)
@@ -160,37 +212,43 @@ def xsph(x, v, m, rho, xb, mb, nf, cf, nb, cb, h, zeta, v_out, drho):
     Also returns D rho_i/Dt of the input velocities (a free by-product used as PF's
     divergence error).
     """
-    for i in prange(x.shape[0]):
-        a0 = 0.0
-        a1 = 0.0
-        a2 = 0.0
-        dr = 0.0
-        xi0, xi1, xi2 = x[i, 0], x[i, 1], x[i, 2]
-        vi0, vi1, vi2 = v[i, 0], v[i, 1], v[i, 2]
-        for n in range(cf[i]):
-            j = nf[i, n]
-            d0 = xi0 - x[j, 0]
-            d1 = xi1 - x[j, 1]
-            d2 = xi2 - x[j, 2]
-            r = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-            u0 = vi0 - v[j, 0]
-            u1 = vi1 - v[j, 1]
-            u2 = vi2 - v[j, 2]
-            wij = (m[j] / rho[j]) * w(r, h)
-            a0 += wij * u0
-            a1 += wij * u1
-            a2 += wij * u2
-            dr += m[j] * grad_w_factor(r, h) * (u0 * d0 + u1 * d1 + u2 * d2)
-        for n in range(cb[i]):
-            b = nb[i, n]
-            d0 = xi0 - xb[b, 0]
-            d1 = xi1 - xb[b, 1]
-            d2 = xi2 - xb[b, 2]
-            dr += mb[b] * grad_w_factor(np.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h) * (vi0 * d0 + vi1 * d1 + vi2 * d2)
-        drho[i] = dr
-        v_out[i, 0] = vi0 - zeta * a0
-        v_out[i, 1] = vi1 - zeta * a1
-        v_out[i, 2] = vi2 - zeta * a2
+    bufs = _buffers(8, nf, nb)
+    for c in prange(bufs.shape[0]):
+        buf = bufs[c]
+        lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
+        for i in range(lo, hi):
+            n_f, n_b = _gather_x(i, x, xb, nf, cf, nb, cb, buf)
+            vi0, vi1, vi2 = v[i, 0], v[i, 1], v[i, 2]
+            for k in range(n_f):
+                j = nf[i, k]
+                buf[C0, k] = m[j]
+                buf[C1, k] = vi0 - v[j, 0]
+                buf[C2, k] = vi1 - v[j, 1]
+                buf[C3, k] = vi2 - v[j, 2]
+                buf[7, k] = m[j] / rho[j]  # XSPH weight (walls take no part in the filter)
+            for k in range(n_b):
+                buf[C0, n_f + k] = mb[nb[i, k]]
+                buf[C1, n_f + k] = vi0
+                buf[C2, n_f + k] = vi1
+                buf[C3, n_f + k] = vi2
+                buf[7, n_f + k] = 0.0
+            a0 = 0.0
+            a1 = 0.0
+            a2 = 0.0
+            dr = 0.0
+            for k in range(n_f + n_b):
+                d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
+                r = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+                u0, u1, u2 = buf[C1, k], buf[C2, k], buf[C3, k]
+                wij = buf[7, k] * w(r, h)
+                a0 += wij * u0
+                a1 += wij * u1
+                a2 += wij * u2
+                dr += buf[C0, k] * grad_w_factor(r, h) * (u0 * d0 + u1 * d1 + u2 * d2)
+            drho[i] = dr
+            v_out[i, 0] = vi0 - zeta * a0
+            v_out[i, 1] = vi1 - zeta * a1
+            v_out[i, 2] = vi2 - zeta * a2
 
 
 @njit(cache=True)
