@@ -221,3 +221,13 @@ def test_table1_dragon_mesh_must_exist(tmp_path, capsys):
                      "--dragon-mesh", str(tmp_path / "Dragon_50k.obj")])
     assert code == 2
     assert "--dragon-mesh" in capsys.readouterr().err
+
+
+def test_render_cost_reports_a_time_or_why_not():
+    from ipsph.benchmark.render_cost import render_cost, table
+    row = render_cost(1000, frames=1)
+    if row.get("error"):
+        assert row["particles"] == 1000 and row["error"]
+    else:
+        assert row["particles"] == 1000 and 0 < row["draw_seconds"] < row["seconds_per_frame"]
+    assert "1,000" in table([row], markdown=True)

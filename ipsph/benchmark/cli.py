@@ -4,6 +4,7 @@
     ipsph bench --repeats 1 --end-time 0.5 --markdown --json bench.json
     ipsph bench --scaling 10000 100000 1000000    # ms/step, us per particle-step, bytes per particle
     ipsph bench --first-frame                    # seconds to the first frame, cold and warm Numba cache
+    ipsph bench --render-sizes 100000 1000000    # issue 4: render seconds per 1280x720 frame
     ipsph bench --table1                         # issue 5: the paper's Table 1 on pipelines/*.toml
     ipsph bench --figure4 fig4 --end-time 1.5     # issue 5: Figure 4, IPSPH beside PF, and their errors
 
@@ -59,6 +60,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="methods of the scaling sweep (default: ipsph)")
     p.add_argument("--scaling-steps", type=int, default=10, metavar="S",
                    help="timed steps per size, after 2 warm-up steps (default 10)")
+    p.add_argument("--render-sizes", nargs="*", type=int, metavar="N", default=None,
+                   help="per-frame render cost of `ipsph run`'s renderer at N particles, 1280x720 "
+                        "(default sizes: 100000 1000000)")
     p.add_argument("--first-frame", action="store_true",
                    help="time to first frame of `ipsph run` (default scene), with a cold and a warm Numba cache")
     p.add_argument("--table1", action="store_true",
@@ -305,12 +309,18 @@ def main(args) -> int:
         texts.append(("## Time to first frame\n\n" if args.markdown else "== time to first frame ==\n")
                      + report.first_frame_table(rows, args.markdown, FIRST_FRAME_TARGET_S))
         failed |= not all(r["ok"] for r in rows)
+    if args.render_sizes is not None:
+        from .render_cost import render_cost, table
+        rows = [render_cost(n) for n in (args.render_sizes or [100_000, 1_000_000])]
+        out["render_cost"] = rows
+        texts.append(("## Render cost per frame\n\n" if args.markdown else "== render cost per frame ==\n")
+                     + table(rows, args.markdown))
     if args.scaling is not None:
         text, rows = bench_scaling(args)
         out["scaling"] = rows
         texts.append(("## Scaling (dam break)\n\n" if args.markdown else "== scaling (dam break) ==\n") + text)
         failed |= any(r.get("error") for r in rows)
-    if args.table1 or not (args.first_frame or args.scaling is not None):
+    if args.table1 or not (args.first_frame or args.scaling is not None or args.render_sizes is not None):
         peer, why = _use_peer(args.peer)
         header += f"; {why}"
         _log(header)
