@@ -12,7 +12,6 @@ from __future__ import annotations
 from .base import StepReport
 from .dfsph import divergence_solve
 from .pf import ProjectiveMethod, pd_solve
-from .sph_passes import xsph
 
 
 class IPSPH(ProjectiveMethod):
@@ -32,11 +31,7 @@ class IPSPH(ProjectiveMethod):
                                           cfg.ipsph_density_error_pct / 100.0, cfg.ipsph_warm_start)
             rep.solver_maxed += rep.pd_passes >= cfg.ipsph_max_passes and err > cfg.ipsph_density_error_pct / 100.0
         with self.timer("xsph"):
-            st.v[:] = (st.x - x_old) / dt
-            xb, mb, nf, cf, nb, cb = self.lists()
-            xsph(st.x, st.v, st.m, self.rho, xb, mb, nf, cf, nb, cb, self.h, self.scene.viscosity,
-                 self.scratch_v, self.drho)
-            st.v[:] = self.scratch_v
+            self.projected_velocities(dt, x_old)
         if cfg.divergence_solve:
             with self.timer("divergenceSolve"):
                 rep.divergence_iterations, rep.divergence_error, maxed = divergence_solve(self, dt, st.k_div)

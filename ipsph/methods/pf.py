@@ -92,6 +92,18 @@ class ProjectiveMethod(Method):
         (x_old,) = self.neighbour_search(x_old)
         return x_old
 
+    def projected_velocities(self, dt: float, x_old: np.ndarray) -> None:
+        """v = (x - x^n) / dt from the projected positions, then XSPH.
+
+        Leaves D rho/Dt of the unfiltered velocities in self.drho (PF's divergence error).
+        """
+        st = self.state
+        st.v[:] = (st.x - x_old) / dt
+        xb, mb, nf, cf, nb, cb = self.lists()
+        xsph(st.x, st.v, st.m, self.rho, xb, mb, nf, cf, nb, cb, self.h, self.scene.viscosity,
+             self.scratch_v, self.drho)
+        st.v[:] = self.scratch_v
+
     def pf_pressure(self, dt: float) -> np.ndarray:
         """p_i = -rho0 Lam_i / dt^2 (>= 0): the constraint displacement as SPH pressure (method.md 3)."""
         return -self.rho0 * self.state.pd_lambda / (dt * dt)
@@ -109,11 +121,7 @@ class PF(ProjectiveMethod):
             passes = self.cfg.pf_passes
             rep.pd_passes, _ = pd_solve(self, dt, passes, passes, 0.0)
         with self.timer("xsph"):
-            st.v[:] = (st.x - x_old) / dt
-            xb, mb, nf, cf, nb, cb = self.lists()
-            xsph(st.x, st.v, st.m, self.rho, xb, mb, nf, cf, nb, cb, self.h, self.scene.viscosity,
-                 self.scratch_v, self.drho)
-            st.v[:] = self.scratch_v
+            self.projected_velocities(dt, x_old)
             rep.divergence_error = dt * mean(np.maximum(self.drho, 0.0)) / self.rho0
         st.pressure[:] = self.pf_pressure(dt)
         rep.density_error_mean, rep.density_error_max = self.density_errors()

@@ -22,7 +22,7 @@ from ..kernels import grad_w_factor, w
 FAST = {"contract", "arcp", "reassoc"}  # no nnan/ninf: NaN checks keep working
 
 # buffer rows (per thread): x_ij components, then per-neighbour scalars
-DX, DY, DZ, C0, C1, C2, C3 = 0, 1, 2, 3, 4, 5, 6
+DX, DY, DZ, C0, C1, C2, C3, C4 = 0, 1, 2, 3, 4, 5, 6, 7
 
 
 CHUNKS = 64  # blocks of particles per pass, each with its own scratch buffer
@@ -125,10 +125,9 @@ def density_factor_lambda(x, m, xb, mb, nf, cf, nb, cb, h, rho0, rho, alpha, lam
             n_nbrs[i] = int(nn)
 
 
-@njit(inline="always", fastmath=FAST)
-def _density_rate(i, x, v, m, xb, mb, nf, cf, nb, cb, h, buf):
-    """D rho_i / Dt = sum_j m_j (v_i - v_j) . grad W_ij + sum_b m_b v_i . grad W_ib   [BK17 eq. 4]."""
-    n_f, n_b = _gather_x(i, x, xb, nf, cf, nb, cb, buf)
+@njit(inline="always")
+def _gather_rate(i, v, m, mb, nf, nb, n_f, n_b, buf):
+    """buf[C0] = m_j (m_b), buf[C1..C3] = v_i - v_j (v_i for walls): what D rho_i/Dt needs."""
     vi0, vi1, vi2 = v[i, 0], v[i, 1], v[i, 2]
     for k in range(n_f):
         j = nf[i, k]
@@ -141,6 +140,13 @@ def _density_rate(i, x, v, m, xb, mb, nf, cf, nb, cb, h, buf):
         buf[C1, n_f + k] = vi0
         buf[C2, n_f + k] = vi1
         buf[C3, n_f + k] = vi2
+
+
+@njit(inline="always", fastmath=FAST)
+def _density_rate(i, x, v, m, xb, mb, nf, cf, nb, cb, h, buf):
+    """D rho_i / Dt = sum_j m_j (v_i - v_j) . grad W_ij + sum_b m_b v_i . grad W_ib   [BK17 eq. 4]."""
+    n_f, n_b = _gather_x(i, x, xb, nf, cf, nb, cb, buf)
+    _gather_rate(i, v, m, mb, nf, nb, n_f, n_b, buf)
     drho = 0.0
     for k in range(n_f + n_b):
         d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
@@ -218,20 +224,13 @@ def xsph(x, v, m, rho, xb, mb, nf, cf, nb, cb, h, zeta, v_out, drho):
         lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
         for i in range(lo, hi):
             n_f, n_b = _gather_x(i, x, xb, nf, cf, nb, cb, buf)
-            vi0, vi1, vi2 = v[i, 0], v[i, 1], v[i, 2]
+            _gather_rate(i, v, m, mb, nf, nb, n_f, n_b, buf)
             for k in range(n_f):
                 j = nf[i, k]
-                buf[C0, k] = m[j]
-                buf[C1, k] = vi0 - v[j, 0]
-                buf[C2, k] = vi1 - v[j, 1]
-                buf[C3, k] = vi2 - v[j, 2]
-                buf[7, k] = m[j] / rho[j]  # XSPH weight (walls take no part in the filter)
+                buf[C4, k] = m[j] / rho[j]  # XSPH weight (walls take no part in the filter)
             for k in range(n_b):
-                buf[C0, n_f + k] = mb[nb[i, k]]
-                buf[C1, n_f + k] = vi0
-                buf[C2, n_f + k] = vi1
-                buf[C3, n_f + k] = vi2
-                buf[7, n_f + k] = 0.0
+                buf[C4, n_f + k] = 0.0
+            vi0, vi1, vi2 = v[i, 0], v[i, 1], v[i, 2]
             a0 = 0.0
             a1 = 0.0
             a2 = 0.0
@@ -240,7 +239,7 @@ def xsph(x, v, m, rho, xb, mb, nf, cf, nb, cb, h, zeta, v_out, drho):
                 d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
                 r = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
                 u0, u1, u2 = buf[C1, k], buf[C2, k], buf[C3, k]
-                wij = buf[7, k] * w(r, h)
+                wij = buf[C4, k] * w(r, h)
                 a0 += wij * u0
                 a1 += wij * u1
                 a2 += wij * u2
