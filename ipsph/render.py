@@ -442,7 +442,7 @@ def render_output(out_dir, *, speed_range=None, config_overrides: dict | None = 
         if radius is None:
             radius = 0.01 * float(np.ptp(allp, axis=0).max() or 1.0)
     scene = run.get("scene") or {}
-    title = " - ".join(str(x) for x in (scene.get("name"), run.get("method"),  # no '|': VTK drops it
+    title = " - ".join(str(x) for x in (scene.get("name"), (run.get("method") or "").upper(),  # no '|': VTK drops it
                                         f"{run['fluid_particles']:,} particles" if run.get("fluid_particles") else None)
                        if x)
     if fps is None:

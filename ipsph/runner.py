@@ -239,7 +239,7 @@ class OutputFolder:
         from .render_worker import BackgroundRenderer
         surface = self.out / out_io.BOUNDARY_SURFACE if self.surface is not None else None
         return BackgroundRenderer(scene.render, bounds, scene.particle_radius, rng, surface,
-                                  title=f"{scene.name} - {scene.method.value.upper()}")
+                                  title=f"{scene.name} - {scene.method.value.upper()} - {sim.n_fluid:,} particles")
 
     def frame(self, sim: Simulation, k: int) -> None:
         t0 = time.perf_counter()
