@@ -108,6 +108,17 @@ def _prepared(path: Path, transform: model.Transform, *, need_closed: bool, allo
     return _PREPARED[key]
 
 
+def mesh_notes(spec) -> list[str]:
+    """What the mesh checks did to a mesh fluid or wall (e.g. inverted normals flipped), one line each."""
+    if _shape(spec) != "mesh":
+        return []
+    if isinstance(spec, model.FluidSpec):
+        _, report = _prepared(_mesh_path(spec), spec.transform, need_closed=True, allow_open=spec.allow_open_mesh)
+    else:
+        _, report = _prepared(_mesh_path(spec), spec.transform, need_closed=False, allow_open=True)
+    return [f"{spec.name}: {note}" for note in report.notes]
+
+
 # ----------------------------------------------------------------------------- fluid
 def _fluid_box_counts(lo: np.ndarray, hi: np.ndarray, d: float) -> np.ndarray:
     # floor(x + 0.5 + eps): round half up, robust to 19.999999 and 13.5 alike

@@ -57,7 +57,7 @@ def sample_scene(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray, list
     fluid_x, fluid_v = np.concatenate(xs), np.concatenate(vs)
     walls = [sampling.boundary_positions(spec, r) for spec in scene.boundaries]
     boundary_x = np.concatenate([np.zeros((0, 3))] + walls)
-    notes = []
+    notes = [n for spec in (*scene.fluids, *scene.boundaries) for n in sampling.mesh_notes(spec)]
     if len(scene.boundaries) and len(fluid_x):
         kept, removed = sampling.remove_overlaps(fluid_x, boundary_x, sampling.default_overlap_distance(r),
                                                  boundaries=scene.boundaries, radius=r)

@@ -100,3 +100,21 @@ def test_help_lists_the_commands():
     res = ipsph("run", "--help")
     for flag in ("--method", "--end-time", "--fps", "--every-step", "--set", "--no-render", "-o"):
         assert flag in res.stdout
+
+
+def test_inverted_mesh_is_flipped_and_the_user_is_told(tmp_path):
+    import pyvista as pv
+
+    from ipsph.scene import scene_from_dict
+    from ipsph.simulation import sample_scene
+    box = pv.Box(bounds=(0.1, 0.5, 0.1, 0.5, 0.1, 0.5)).triangulate()
+    faces = box.faces.reshape(-1, 4).copy()
+    faces[:, [2, 3]] = faces[:, [3, 2]]  # every triangle wound the wrong way: normals point inward
+    pv.PolyData(box.points, faces.ravel()).save(tmp_path / "inverted.stl")
+    scene = scene_from_dict({"simulation": {"particle_radius": 0.02},
+                             "fluid": [{"name": "blob", "mesh": str(tmp_path / "inverted.stl")}],
+                             "boundary": [{"role": "container", "box": {"min": [0, 0, 0], "max": [0.6, 0.6, 0.6]}}]},
+                            name="inverted")
+    fluid, _, _, notes = sample_scene(scene)
+    assert len(fluid) == 10 ** 3  # the 0.4 m cube at spacing 0.04 m: the flipped mesh is filled normally
+    assert any("blob" in n and "flipped" in n for n in notes)
