@@ -221,3 +221,44 @@ def machine_info() -> dict:
         "platform": platform.platform(),
         "python": platform.python_version(),
     }
+
+
+STDERR_TAIL = 3000  # characters of a failed worker's stderr kept in the error
+
+
+def run_json_worker(cmd: list[str], env: dict, timeout: float, what: str, where: str,
+                    sample_load: bool = True) -> dict:
+    """Run one benchmark worker process whose last stdout line is one JSON object.
+
+    The machine's load is sampled while it runs (result["load"]); the command is kept in
+    result["command"]. A timeout, a crash or a missing JSON line raises RuntimeError naming
+    `what` (e.g. "ipsph worker") and `where` (scene, method) with the tail of its stderr.
+    """
+    import json
+    import subprocess
+
+    sampler = LoadSampler(0.5) if sample_load else None
+    if sampler:
+        sampler.start()
+    try:
+        proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=timeout)
+    except subprocess.TimeoutExpired as exc:
+        err = exc.stderr.decode(errors="replace") if isinstance(exc.stderr, bytes) else (exc.stderr or "")
+        raise RuntimeError(f"{what} timed out after {timeout} s on {where}; "
+                           f"stderr tail:\n{err[-STDERR_TAIL:]}") from None
+    finally:
+        load = sampler.stop() if sampler else None
+    lines = [ln for ln in (proc.stdout or "").splitlines() if ln.strip()]
+    result = None
+    if proc.returncode == 0 and lines:
+        try:
+            result = json.loads(lines[-1])
+        except json.JSONDecodeError:
+            result = None
+    if result is None:
+        status = (f"killed by signal {-proc.returncode}" if proc.returncode < 0
+                  else f"exit status {proc.returncode}")
+        raise RuntimeError(f"{what} failed ({status}) on {where}; stderr tail:\n{(proc.stderr or '')[-STDERR_TAIL:]}")
+    result["load"] = load.as_dict() if load else None
+    result["command"] = cmd
+    return result

@@ -9,20 +9,17 @@ See the worker's docstring for the meaning of every key of the result.
 """
 from __future__ import annotations
 
-import json
 import os
-import subprocess
 import sys
 from pathlib import Path
 
 from ..errors import ConfigError
-from .machine import LoadSampler
+from .machine import run_json_worker
 
 __all__ = ["METHODS", "ours_env", "run_ours"]
 
 METHODS = ("ipsph", "pf", "dfsph")
 _REPO_ROOT = Path(__file__).resolve().parents[2]
-_STDERR_TAIL = 3000
 
 
 def ours_env(threads: int | None = None, extra: dict[str, str] | None = None) -> dict[str, str]:
@@ -66,30 +63,5 @@ def run_ours(scene_path: str | Path, method: str, end_time: float | None, thread
     for item in overrides:
         cmd += ["--set", str(item)]
 
-    sampler = LoadSampler(0.5) if sample_load else None
-    if sampler:
-        sampler.start()
-    try:
-        proc = subprocess.run(cmd, env=ours_env(threads, env), capture_output=True, text=True, timeout=timeout)
-    except subprocess.TimeoutExpired as exc:
-        err = exc.stderr.decode(errors="replace") if isinstance(exc.stderr, bytes) else (exc.stderr or "")
-        raise RuntimeError(f"ipsph worker timed out after {timeout} s on {scene} method={method}; "
-                           f"stderr tail:\n{err[-_STDERR_TAIL:]}") from None
-    finally:
-        load = sampler.stop() if sampler else None
-
-    lines = [ln for ln in (proc.stdout or "").splitlines() if ln.strip()]
-    result = None
-    if proc.returncode == 0 and lines:
-        try:
-            result = json.loads(lines[-1])
-        except json.JSONDecodeError:
-            result = None
-    if result is None:
-        status = (f"killed by signal {-proc.returncode}" if proc.returncode < 0
-                  else f"exit status {proc.returncode}")
-        raise RuntimeError(f"ipsph worker failed ({status}) on {scene} method={method}; "
-                           f"stderr tail:\n{(proc.stderr or '')[-_STDERR_TAIL:]}")
-    result["load"] = load.as_dict() if load else None
-    result["command"] = cmd
-    return result
+    return run_json_worker(cmd, ours_env(threads, env), timeout, "ipsph worker", f"{scene} method={method}",
+                           sample_load)

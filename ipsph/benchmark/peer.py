@@ -22,14 +22,13 @@ import sys
 from pathlib import Path
 
 from ..errors import ConfigError
-from .machine import LoadSampler
+from .machine import run_json_worker
 
 __all__ = ["GL_PRELOAD", "METHODS", "peer_available", "peer_env", "run_peer"]
 
 GL_PRELOAD = "/lib/x86_64-linux-gnu/libGLdispatch.so.0"
 METHODS = ("wcsph", "pcisph", "pbf", "iisph", "dfsph", "pf", "icsph")  # names the worker accepts
 _REPO_ROOT = Path(__file__).resolve().parents[2]  # folder holding the ipsph package
-_STDERR_TAIL = 3000
 
 
 def peer_env(threads: int | None = None) -> dict[str, str]:
@@ -124,31 +123,5 @@ def run_peer(
     if work_dir is not None:
         cmd += ["--work-dir", str(Path(work_dir).resolve())]
 
-    sampler = LoadSampler(0.5) if sample_load else None
-    if sampler:
-        sampler.start()
-    try:
-        proc = subprocess.run(cmd, env={**peer_env(threads), **(env or {})}, capture_output=True, text=True,
-                              timeout=timeout)
-    except subprocess.TimeoutExpired as exc:
-        err = exc.stderr.decode(errors="replace") if isinstance(exc.stderr, bytes) else (exc.stderr or "")
-        raise RuntimeError(f"SPlisHSPlasH peer timed out after {timeout} s on {resolved}; "
-                           f"stderr tail:\n{err[-_STDERR_TAIL:]}") from None
-    finally:
-        load = sampler.stop() if sampler else None
-
-    lines = [ln for ln in (proc.stdout or "").splitlines() if ln.strip()]
-    result = None
-    if proc.returncode == 0 and lines:
-        try:
-            result = json.loads(lines[-1])
-        except json.JSONDecodeError:
-            result = None
-    if result is None:
-        status = (f"killed by signal {-proc.returncode}" if proc.returncode < 0
-                  else f"exit status {proc.returncode}")
-        raise RuntimeError(f"SPlisHSPlasH peer failed ({status}) on {resolved} method={method}; "
-                           f"stderr tail:\n{(proc.stderr or '')[-_STDERR_TAIL:]}")
-    result["load"] = load.as_dict() if load else None
-    result["command"] = cmd
-    return result
+    return run_json_worker(cmd, {**peer_env(threads), **(env or {})}, timeout, "SPlisHSPlasH peer",
+                           f"{resolved} method={method}", sample_load)
