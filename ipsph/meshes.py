@@ -300,6 +300,22 @@ def aligned_box(mesh, rel_tol: float = 1e-6) -> tuple[np.ndarray, np.ndarray] | 
 
 
 # ----------------------------------------------------------------------------- winding number
+@nb.njit(inline="always")
+def _solid_angle(t, tri_a, tri_b, tri_c, px, py, pz):
+    """Signed solid angle of triangle t seen from p [van Oosterom & Strackee 1983]:
+    2 atan2(a·(b×c), |a||b||c| + (a·b)|c| + (b·c)|a| + (c·a)|b|), a, b, c = corners − p."""
+    ax, ay, az = tri_a[t, 0] - px, tri_a[t, 1] - py, tri_a[t, 2] - pz
+    bx, by, bz = tri_b[t, 0] - px, tri_b[t, 1] - py, tri_b[t, 2] - pz
+    cx, cy, cz = tri_c[t, 0] - px, tri_c[t, 1] - py, tri_c[t, 2] - pz
+    la = math.sqrt(ax * ax + ay * ay + az * az)
+    lb = math.sqrt(bx * bx + by * by + bz * bz)
+    lc = math.sqrt(cx * cx + cy * cy + cz * cz)
+    det = ax * (by * cz - bz * cy) - ay * (bx * cz - bz * cx) + az * (bx * cy - by * cx)
+    den = (la * lb * lc + (ax * bx + ay * by + az * bz) * lc
+           + (bx * cx + by * cy + bz * cz) * la + (cx * ax + cy * ay + cz * az) * lb)
+    return 2.0 * math.atan2(det, den)
+
+
 @nb.njit(parallel=True, cache=True)
 def _winding_kernel(points, tri_a, tri_b, tri_c, out):
     """out_i = (1/4π) Σ_t 2 atan2(a·(b×c), |a||b||c| + (a·b)|c| + (b·c)|a| + (c·a)|b|), a,b,c = t − p_i."""
@@ -309,16 +325,7 @@ def _winding_kernel(points, tri_a, tri_b, tri_c, out):
         px, py, pz = points[i, 0], points[i, 1], points[i, 2]
         acc = 0.0
         for t in range(m):
-            ax, ay, az = tri_a[t, 0] - px, tri_a[t, 1] - py, tri_a[t, 2] - pz
-            bx, by, bz = tri_b[t, 0] - px, tri_b[t, 1] - py, tri_b[t, 2] - pz
-            cx, cy, cz = tri_c[t, 0] - px, tri_c[t, 1] - py, tri_c[t, 2] - pz
-            la = math.sqrt(ax * ax + ay * ay + az * az)
-            lb = math.sqrt(bx * bx + by * by + bz * bz)
-            lc = math.sqrt(cx * cx + cy * cy + cz * cz)
-            det = ax * (by * cz - bz * cy) - ay * (bx * cz - bz * cx) + az * (bx * cy - by * cx)
-            den = (la * lb * lc + (ax * bx + ay * by + az * bz) * lc
-                   + (bx * cx + by * cy + bz * cz) * la + (cx * ax + cy * ay + cz * az) * lb)
-            acc += 2.0 * math.atan2(det, den)
+            acc += _solid_angle(t, tri_a, tri_b, tri_c, px, py, pz)
         out[i] = acc / (4.0 * math.pi)
 
 
@@ -473,16 +480,7 @@ def _fast_winding_kernel(points, tri_a, tri_b, tri_c, start, centre, area_vec, r
                 acc += (area_vec[c, 0] * dx + area_vec[c, 1] * dy + area_vec[c, 2] * dz) / (dist * dist * dist)
                 continue
             for t in range(start[c], start[c + 1]):
-                ax, ay, az = tri_a[t, 0] - px, tri_a[t, 1] - py, tri_a[t, 2] - pz
-                bx, by, bz = tri_b[t, 0] - px, tri_b[t, 1] - py, tri_b[t, 2] - pz
-                cx, cy, cz = tri_c[t, 0] - px, tri_c[t, 1] - py, tri_c[t, 2] - pz
-                la = math.sqrt(ax * ax + ay * ay + az * az)
-                lb = math.sqrt(bx * bx + by * by + bz * bz)
-                lc = math.sqrt(cx * cx + cy * cy + cz * cz)
-                det = ax * (by * cz - bz * cy) - ay * (bx * cz - bz * cx) + az * (bx * cy - by * cx)
-                den = (la * lb * lc + (ax * bx + ay * by + az * bz) * lc
-                       + (bx * cx + by * cy + bz * cz) * la + (cx * ax + cy * ay + cz * az) * lb)
-                acc += 2.0 * math.atan2(det, den)
+                acc += _solid_angle(t, tri_a, tri_b, tri_c, px, py, pz)
         out[i] = acc / (4.0 * math.pi)
 
 
