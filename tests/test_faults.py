@@ -28,14 +28,6 @@ SMALL = ["--set", "simulation.particle_radius=0.04"]
 REPO = Path(__file__).resolve().parents[1]
 
 
-@pytest.fixture(autouse=True)
-def _threads():
-    import numba
-    n = numba.get_num_threads()
-    yield
-    numba.set_num_threads(n)
-
-
 def run_cli(capsys, out: Path, *args) -> tuple[int, str]:
     code = cli.main(["run", "-o", str(out), "--quiet", "--no-render", "--threads", "1", *SMALL, *map(str, args)])
     return code, capsys.readouterr().err

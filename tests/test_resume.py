@@ -22,14 +22,6 @@ BASE = ["--quiet", "--no-render", "--threads", "1", "--set", "simulation.particl
         "--set", "output.checkpoint_interval=0.08"]
 
 
-@pytest.fixture(autouse=True)
-def _threads():
-    import numba
-    n = numba.get_num_threads()
-    yield
-    numba.set_num_threads(n)
-
-
 def run_cli(capsys, out: Path, *args) -> tuple[int, str]:
     code = cli.main(["run", "-o", str(out), *BASE, *map(str, args)])
     return code, capsys.readouterr().err
