@@ -12,28 +12,44 @@ from __future__ import annotations
 import multiprocessing as mp
 import os
 import queue as queue_mod
+import signal
+import time as _time
 from pathlib import Path
 
 import numpy as np
 
-QUEUE_FRAMES = 6      # frames in flight before submit() blocks
-NICENESS = 5          # the solver keeps priority over the renderer
+QUEUE_BYTES = 256 * 2**20  # frames in flight (24 B per particle) before submit() waits: the solver
+QUEUE_FRAMES = (2, 256)    # runs ahead while the renderer starts or the machine is busy
+NICENESS = 10  # below the solver: at nice 5 the worker preempted solver threads mid parallel loop
+               # (the other thread spun at the barrier: +40 % user time on 2 cores); nice 19 starves
+               # it on a machine busy with other jobs. The final frames render at normal priority
+               # where the OS permits raising it back (`close`).
+DRAIN_NOTICE_S = 2.0       # say what the run is waiting for when the last frames take longer
 
 
-def _worker(jobs, results, config, bounds, radius, speed_range, surface_file, title):
+def _worker(jobs, results):
     # one llvmpipe thread: the solver has the cores; llvmpipe's own threads cost more CPU than they save
     os.environ.setdefault("LP_NUM_THREADS", "1")
     try:
         os.nice(NICENESS)
     except OSError:  # pragma: no cover - not permitted on some systems
         pass
-    from .render import FrameRenderer
-    surface = None
-    if surface_file is not None and Path(surface_file).is_file():
-        import pyvista as pv
-        surface = pv.read(surface_file)
+    # VTK logs a failing GL stack over many lines; the parent reports the failure in one
+    from vtkmodules.vtkCommonCore import vtkLogger, vtkObject
+    vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_OFF)
+    vtkObject.GlobalWarningDisplayOff()
+    from .render import FrameRenderer, read_surface
+    from .splat import warm_up
+    warm_up()  # load the compiled kernels while the solver is still setting up
     try:
+        setup = jobs.get()
+        if setup is None:  # the run ended before its first frame
+            return
+        config, bounds, radius, speed_range, surface_file, title = setup
+        surface = read_surface(surface_file) if surface_file is not None else None
         with FrameRenderer(config, bounds, radius, speed_range, surface, title=title) as renderer:
+            renderer.prepare()  # the first GL use: a missing GL stack crashes here, before any frame
+            results.put(("ready", ""))
             while True:
                 job = jobs.get()
                 if job is None:
@@ -46,19 +62,28 @@ def _worker(jobs, results, config, bounds, radius, speed_range, surface_file, ti
 
 
 class BackgroundRenderer:
-    """A render worker process fed with frames; `close()` waits for the frames in flight."""
+    """A render worker process fed with frames; `close()` waits for the frames in flight.
 
-    def __init__(self, config, bounds, radius, speed_range, surface_file=None, title=None):
+    Start it early (`BackgroundRenderer()`): the worker imports VTK and loads its kernels while
+    the solver samples the scene; `configure()` then gives it the camera, colours and walls.
+    """
+
+    def __init__(self):
         ctx = mp.get_context("spawn")  # a fresh interpreter: no forked numba/OpenMP threads
-        self._jobs = ctx.Queue(maxsize=QUEUE_FRAMES)
+        self._jobs = ctx.Queue()  # bounded in bytes by submit()
         self._results = ctx.Queue()
         self._proc = ctx.Process(target=_worker, daemon=True, name="ipsph-render",
-                                 args=(self._jobs, self._results, config, list(bounds), float(radius),
-                                       tuple(speed_range), None if surface_file is None else str(surface_file),
-                                       title))
+                                 args=(self._jobs, self._results))
         self._proc.start()
         self.rendered = 0
+        self.submitted = 0
+        self.ready = False       # the worker has its GL context and static layers
         self.error: str | None = None
+
+    def configure(self, config, bounds, radius, speed_range, surface_file=None, title=None) -> None:
+        """The series' render settings (once, before the first frame)."""
+        self._jobs.put((config, [float(b) for b in bounds], float(radius), tuple(float(v) for v in speed_range),
+                        None if surface_file is None else str(surface_file), title))
 
     def _drain(self) -> None:
         while True:
@@ -68,45 +93,85 @@ class BackgroundRenderer:
                 return
             if status == "ok":
                 self.rendered += 1
+            elif status == "ready":
+                self.ready = True
             else:
                 self.error = what
+
+    def _check_exit(self) -> None:
+        """A worker that died says why: a signal (a missing or broken GL stack segfaults in VTK)
+        or an exit status."""
+        code = self._proc.exitcode
+        if self.error is not None or code in (0, None):
+            return
+        if code < 0:
+            from .render import GL_HINT
+            try:
+                name = signal.Signals(-code).name
+            except ValueError:
+                name = f"signal {-code}"
+            self.error = f"the render process crashed ({name}); no usable GL/EGL stack? {GL_HINT}"
+        else:
+            self.error = f"the render process ended with exit code {code}"
 
     @property
     def alive(self) -> bool:
         self._drain()
+        if not self._proc.is_alive():
+            self._drain()
+            self._check_exit()
         return self.error is None and self._proc.is_alive()
 
+    @property
+    def backlog(self) -> int:
+        """Frames submitted and not rendered yet."""
+        self._drain()
+        return self.submitted - self.rendered
+
     def submit(self, points: np.ndarray, velocities: np.ndarray, png: Path, time: float) -> bool:
-        """Queue one frame (copied as float32); False once the worker has failed."""
+        """Queue one frame (copied as float32); False once the worker has failed. Waits while the
+        frames in flight fill QUEUE_BYTES, so a slow renderer holds the solver back, not memory."""
         if not self.alive:
             return False
         job = (np.asarray(points, dtype=np.float32), np.asarray(velocities, dtype=np.float32), Path(png),
                float(time))
-        while True:
-            try:
-                self._jobs.put(job, timeout=1.0)
-                return True
-            except queue_mod.Full:
-                if not self.alive:
-                    return False
+        frame_bytes = max(job[0].nbytes + job[1].nbytes, 1)
+        capacity = min(max(QUEUE_BYTES // frame_bytes, QUEUE_FRAMES[0]), QUEUE_FRAMES[1])
+        while self.backlog >= capacity:
+            if not self.alive:
+                return False
+            _time.sleep(0.02)
+        self._jobs.put(job)
+        self.submitted += 1
+        return True
 
-    def close(self, timeout: float | None = None) -> None:
-        """Let the worker finish the frames in flight, then stop it."""
+    def close(self, timeout: float | None = None, notice=None) -> None:
+        """Let the worker finish the frames in flight, then stop it. `notice(backlog)` is called
+        once if that takes longer than DRAIN_NOTICE_S."""
         if self._proc.is_alive():
-            try:
-                self._jobs.put(None, timeout=5.0)
-            except queue_mod.Full:
+            self._jobs.put(None)
+            try:  # the solver is done: the last frames need not yield to it any more
+                os.setpriority(os.PRIO_PROCESS, self._proc.pid, 0)
+            except OSError:  # lowering niceness needs CAP_SYS_NICE or RLIMIT_NICE; then it stays
                 pass
-            self._proc.join(timeout)
+            t0 = _time.perf_counter()
+            while self._proc.is_alive():
+                self._proc.join(0.25)
+                waited = _time.perf_counter() - t0
+                if notice is not None and waited > DRAIN_NOTICE_S and self.backlog > 0:
+                    notice(self.backlog)
+                    notice = None
+                if timeout is not None and waited > timeout:
+                    break
         if self._proc.is_alive():
             self._proc.terminate()
             self._proc.join(5.0)
         self._drain()
-        if self.error is None and self._proc.exitcode not in (0, None):
-            self.error = f"the render process ended with exit code {self._proc.exitcode}"
+        self._check_exit()
 
     def terminate(self) -> None:
-        """Stop at once (interrupt): frames still queued are dropped."""
+        """Stop at once (interrupt, or the worker died): frames still queued are dropped."""
+        self._jobs.cancel_join_thread()  # never block exit on frames nobody will read
         if self._proc.is_alive():
             self._proc.terminate()
             self._proc.join(5.0)

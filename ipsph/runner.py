@@ -155,7 +155,7 @@ class OutputFolder:
     checkpoint are deleted and dropped from the PVD, stats rows after its step are cut.
     """
 
-    def __init__(self, out: Path, sim: Simulation, scene: Scene, info: dict, render: bool, progress: bool,
+    def __init__(self, out: Path, sim: Simulation, scene: Scene, info: dict, renderer, progress: bool,
                  resume: ckpt.Checkpoint | None = None):
         self.out, self.sim, self.scene, self.info = out, sim, scene, info
         self.fields = scene.output.fields
@@ -183,7 +183,7 @@ class OutputFolder:
             self.stats = out_io.stats.StatsWriter(out / out_io.STATS_CSV, STATS_COLUMNS,
                                                   truncate_after_step=resume.steps)
         self.surface = self._write_surface()
-        self.renderer = self._renderer() if render else None
+        self.renderer = self._configure_renderer(renderer) if renderer is not None else None
         self.progress = progress
         self.t_start = time.perf_counter()
         self.steps_start = sim.steps
@@ -222,13 +222,10 @@ class OutputFolder:
         out_io.vtu.write_surface(self.out / out_io.BOUNDARY_SURFACE, surf)
         return surf
 
-    def _renderer(self):
+    def _configure_renderer(self, worker):
+        # No GL probe here: the render worker is itself a child process, so a missing GL stack
+        # crashes it, not the run, and it starts while the solver sets up (a probe costs ~2 s).
         from . import render
-        ok, why = render.gl_available()
-        if not ok:
-            print(f"ipsph: warning: renders skipped: {why}", file=sys.stderr)
-            self.info["render"] = {"enabled": False, "skipped": why}
-            return None
         sim, scene = self.sim, self.scene
         speed = max((float(np.linalg.norm(f.velocity)) for f in scene.fluids), default=0.0)
         bounds = self.info["domain_bounds"]
@@ -236,10 +233,10 @@ class OutputFolder:
         rng = scene.render.speed_range or self.info.pop("render_speed_range", None) \
             or render.default_speed_range(speed, scene.gravity, top, bounds[2])
         self.info["render"] = {**_asdict(scene.render), "enabled": True, "speed_range": list(rng)}
-        from .render_worker import BackgroundRenderer
         surface = self.out / out_io.BOUNDARY_SURFACE if self.surface is not None else None
-        return BackgroundRenderer(scene.render, bounds, scene.particle_radius, rng, surface,
-                                  title=f"{scene.name} - {scene.method.value.upper()} - {sim.n_fluid:,} particles")
+        worker.configure(scene.render, bounds, scene.particle_radius, rng, surface,
+                         title=f"{scene.name} - {scene.method.value.upper()} - {sim.n_fluid:,} particles")
+        return worker
 
     def frame(self, sim: Simulation, k: int) -> None:
         t0 = time.perf_counter()
@@ -293,7 +290,10 @@ class OutputFolder:
 
     def _render_failed(self) -> None:
         why = self.renderer.error or "the render process stopped"
-        print(f"\nipsph: warning: renders stopped ({why}); the simulation carries on", file=sys.stderr)
+        if self.renderer.ready:
+            print(f"\nipsph: warning: renders stopped ({why}); the simulation carries on", file=sys.stderr)
+        else:
+            print(f"\nipsph: warning: renders skipped: {why}", file=sys.stderr)
         self.info["render"] = {**self.info.get("render", {}), "enabled": False, "skipped": why}
         self.renderer.terminate()
         self.renderer = None
@@ -304,7 +304,18 @@ class OutputFolder:
         self.stats.close()
         if self.renderer is not None:
             t0 = time.perf_counter()
-            self.renderer.close()  # the frames still in flight
+            try:
+                self.renderer.close(notice=lambda n: print(
+                    f"ipsph: rendering the last {n} frames (Ctrl-C skips them; `ipsph render {self.out}` "
+                    f"makes them later)", file=sys.stderr))  # the frames still in flight
+            except KeyboardInterrupt:
+                missing = self.renderer.backlog
+                self.renderer.terminate()
+                print(f"ipsph: warning: renders interrupted, {missing} frames not rendered; "
+                      f"`ipsph render {self.out}` makes them", file=sys.stderr)
+                self.info["render"] = {**self.info.get("render", {}), "interrupted": True}
+                self.renderer = None
+                return
             self.render_seconds += time.perf_counter() - t0
             if self.renderer.error:
                 self._render_failed()
@@ -324,13 +335,27 @@ def _asdict(obj):
 
 def run(scene: Scene, opts: RunOptions) -> int:
     """Run `scene` into `opts.out_dir`; returns the exit code (errors before the run raise)."""
-    from .scene import scene_to_dict
     out = opts.out_dir
     check_output_folder(out, opts.overwrite, opts.resume)
     resume = _load_resume(out, scene) if opts.resume else None
     if resume is None:
         check_size(scene, opts.max_particles)  # first: it also runs the mesh checks (open, zero volume)
         check_geometry(scene)
+    renderer = None
+    if opts.render and scene.render.enabled:  # start it now: it imports VTK while we sample
+        from .render_worker import BackgroundRenderer
+        renderer = BackgroundRenderer()
+    try:
+        return _run(scene, opts, resume, renderer)
+    except BaseException:
+        if renderer is not None:
+            renderer.terminate()
+        raise
+
+
+def _run(scene: Scene, opts: RunOptions, resume, renderer) -> int:
+    from .scene import scene_to_dict
+    out = opts.out_dir
     import numba
     if opts.threads:
         numba.set_num_threads(int(opts.threads))
@@ -369,7 +394,7 @@ def run(scene: Scene, opts: RunOptions) -> int:
         info.update(_previous_info(out))
         info["resumed"] = info.get("resumed", []) + [{"time": resume.time, "step": resume.steps, "at": now}]
     progress = sys.stderr.isatty() if opts.progress is None else opts.progress
-    folder = OutputFolder(out, sim, scene, info, opts.render and scene.render.enabled, progress, resume)
+    folder = OutputFolder(out, sim, scene, info, renderer, progress, resume)
     info["setup_seconds"] = time.perf_counter() - t_setup
     _write_info(out, info, sim, folder)
     old = {s: signal.signal(s, _on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
