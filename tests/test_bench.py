@@ -229,5 +229,17 @@ def test_render_cost_reports_a_time_or_why_not():
     if row.get("error"):
         assert row["particles"] == 1000 and row["error"]
     else:
-        assert row["particles"] == 1000 and 0 < row["draw_seconds"] < row["seconds_per_frame"]
+        assert row["particles"] == 1000
+        for engine in ("splat", "vtk"):  # each engine: draw and PNG are parts of the frame time
+            e = row[engine]
+            assert 0 < e["draw_seconds"] < e["seconds_per_frame"] and 0 < e["png_seconds"] < e["seconds_per_frame"]
+        assert row["seconds_per_frame"] == row["splat"]["seconds_per_frame"]
     assert "1,000" in table([row], markdown=True)
+
+
+def test_render_overhead_table_judges_the_median_ratio():
+    from ipsph.benchmark.render_cost import overhead_table
+    s = {"pairs": [{}] * 3, "counted": 3, "plain_seconds": 10.0, "render_seconds": 12.0, "ratio_median": 1.2,
+         "plain_cpu": 19.0, "render_cpu": 21.0, "ok": True}
+    assert "x1.200" in overhead_table(s, markdown=True) and ": met" in overhead_table(s, markdown=False)
+    assert "NOT met" in overhead_table({**s, "ratio_median": 1.3}, markdown=False)

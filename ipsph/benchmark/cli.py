@@ -5,6 +5,7 @@
     ipsph bench --scaling 10000 100000 1000000    # ms/step, us per particle-step, bytes per particle
     ipsph bench --first-frame                    # seconds to the first frame, cold and warm Numba cache
     ipsph bench --render-sizes 100000 1000000    # issue 4: render seconds per 1280x720 frame
+    ipsph bench --render-overhead --repeats 5    # issue 4: default scene with / without renders
     ipsph bench --table1                         # issue 5: the paper's Table 1 on pipelines/*.toml
     ipsph bench --figure4 fig4 --end-time 1.5     # issue 5: Figure 4, IPSPH beside PF, and their errors
 
@@ -63,6 +64,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--render-sizes", nargs="*", type=int, metavar="N", default=None,
                    help="per-frame render cost of `ipsph run`'s renderer at N particles, 1280x720 "
                         "(default sizes: 100000 1000000)")
+    p.add_argument("--render-overhead", action="store_true",
+                   help="issue 4: wall time of `ipsph run` on the default scene with and without renders, "
+                        "--repeats alternating pairs, and the slow-down (target <= 25 %%)")
     p.add_argument("--first-frame", action="store_true",
                    help="time to first frame of `ipsph run` (default scene), with a cold and a warm Numba cache")
     p.add_argument("--table1", action="store_true",
@@ -315,12 +319,21 @@ def main(args) -> int:
         out["render_cost"] = rows
         texts.append(("## Render cost per frame\n\n" if args.markdown else "== render cost per frame ==\n")
                      + table(rows, args.markdown))
+    if args.render_overhead:
+        from .render_cost import overhead_table, render_overhead
+        summary = render_overhead(args.repeats, args.threads, args.max_load, timeout=min(args.timeout, 900.0),
+                                  log=_log)
+        out["render_overhead"] = summary
+        texts.append(("## Render overhead (default scene)\n\n" if args.markdown
+                      else "== render overhead (default scene) ==\n") + overhead_table(summary, args.markdown))
+        failed |= not summary["ok"]
     if args.scaling is not None:
         text, rows = bench_scaling(args)
         out["scaling"] = rows
         texts.append(("## Scaling (dam break)\n\n" if args.markdown else "== scaling (dam break) ==\n") + text)
         failed |= any(r.get("error") for r in rows)
-    if args.table1 or not (args.first_frame or args.scaling is not None or args.render_sizes is not None):
+    if args.table1 or not (args.first_frame or args.scaling is not None or args.render_sizes is not None
+                           or args.render_overhead):
         peer, why = _use_peer(args.peer)
         header += f"; {why}"
         _log(header)
