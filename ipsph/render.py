@@ -48,9 +48,15 @@ SPEED_TITLE = "speed [m/s]"
 ENGINES = ("splat", "vtk")  # splat: particles rasterised by ipsph.splat over layers VTK drew once
 
 
+def _ui_scale(height: int) -> float:
+    """Text and margins are laid out for 720 rows and scale with the image height."""
+    return int(height) / 720.0
+
+
 def TIME_LABEL_POS(height: int) -> tuple[int, int]:  # noqa: N802 - a constant of the layout
     """Bottom-left corner (display pixels, y up) of the "t = ..." label, top left of the frame."""
-    return (18, height - 42)
+    k = _ui_scale(height)
+    return (round(18 * k), int(height) - round(42 * k))
 
 GL_HINT = ("install an EGL + Mesa stack (apt-get install -y --no-install-recommends libegl1 "
             "libgl1-mesa-dri)")
@@ -197,7 +203,7 @@ def _set_font(prop) -> None:
         prop.SetFontFamilyToArial()
 
 
-def _scalar_bar(lut):
+def _scalar_bar(lut, scale: float = 1.0):
     """Vertical bar on the right, white text, title "speed [m/s]", five labels."""
     from vtkmodules.vtkRenderingAnnotation import vtkScalarBarActor
 
@@ -214,12 +220,12 @@ def _scalar_bar(lut):
     bar.SetWidth(0.09)
     bar.SetHeight(0.62)
     bar.SetBarRatio(0.3)
-    bar.SetVerticalTitleSeparation(14)
-    bar.SetTextPad(6)
+    bar.SetVerticalTitleSeparation(round(14 * scale))
+    bar.SetTextPad(round(6 * scale))
     bar.UnconstrainedFontSizeOn()
     for prop, size in ((bar.GetTitleTextProperty(), 20), (bar.GetLabelTextProperty(), 16)):
         prop.SetColor(1.0, 1.0, 1.0)
-        prop.SetFontSize(size)
+        prop.SetFontSize(max(round(size * scale), 6))
         _set_font(prop)
         prop.ShadowOff()
         prop.BoldOff()
@@ -314,7 +320,8 @@ class FrameRenderer:
         self._keep: tuple = ()
         self._set_particles(np.zeros((0, 3)), np.zeros(0))
 
-        bar = _scalar_bar(lut)
+        k = _ui_scale(h)
+        bar = _scalar_bar(lut, k)
         ren.AddViewProp(bar)
         self._overlays = [bar]   # 2D actors drawn over everything
         self._walls = []         # the boundary surface and its edges
@@ -335,9 +342,10 @@ class FrameRenderer:
             if edges.GetNumberOfPoints():
                 self._walls.append(self._add_surface(edges, 0.45, lighting=False, cull_front=False))
 
-        self._time_text = self._add_text("", TIME_LABEL_POS(h), 28, "#ffffff")
+        self._time_text = self._add_text("", TIME_LABEL_POS(h), max(round(28 * k), 6), "#ffffff")
         if title:
-            self._overlays.append(self._add_text(title, (18, 14), 20, "#b8c0cc"))
+            self._overlays.append(self._add_text(title, (round(18 * k), round(14 * k)), max(round(20 * k), 6),
+                                                 "#b8c0cc"))
         self._layers = None      # the static layers of the splat engine, drawn at the first frame
 
         pos, focal, up = camera_for_view(bounds, config.view, width=w, height=h,
