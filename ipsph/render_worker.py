@@ -20,10 +20,11 @@ import numpy as np
 
 QUEUE_BYTES = 256 * 2**20  # frames in flight (24 B per particle) before submit() waits: the solver
 QUEUE_FRAMES = (2, 256)    # runs ahead while the renderer starts or the machine is busy
-NICENESS = 10  # below the solver: at nice 5 the worker preempted solver threads mid parallel loop
-               # (the other thread spun at the barrier: +40 % user time on 2 cores); nice 19 starves
-               # it on a machine busy with other jobs. The final frames render at normal priority
-               # where the OS permits raising it back (`close`).
+NICENESS = 19  # lowest: renders use the cycles the solver leaves idle. At nice 5-10 the worker
+               # preempted solver threads mid parallel loop and the other thread spun at the barrier
+               # (default scene: x1.26 wall at nice 10, x1.08 at nice 19). On a machine busy with
+               # other jobs the renders fall behind; the solver runs ahead (QUEUE_BYTES) and the
+               # last frames render at normal priority where the OS permits raising it (`close`).
 DRAIN_NOTICE_S = 2.0       # say what the run is waiting for when the last frames take longer
 
 
