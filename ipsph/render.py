@@ -607,7 +607,7 @@ def _save_png(img: np.ndarray, path: Path) -> None:
             tmp.unlink()
 
 
-def read_surface(path) -> "vtkPolyData | None":  # noqa: F821
+def read_surface(path):
     """The boundary surface (.vtp) the run wrote, or None; plain VTK (no pyvista import, ~0.35 s)."""
     path = Path(path)
     if not path.is_file():

@@ -20,7 +20,6 @@ import argparse
 import json
 import math
 import os
-import subprocess
 import sys
 import tempfile
 import time
@@ -232,35 +231,23 @@ def bench_scaling(args) -> tuple[str, list[dict]]:
 def first_frame(threads: int, timeout: float = 900.0) -> list[dict]:
     """Time to first frame: Seconds for `ipsph run` (default scene, first frame at t = 0.04 s, no renders) to finish,
     with NUMBA_CACHE_DIR pointed at a fresh folder (cold: everything compiles) and then again (warm)."""
-    from .machine import LoadSampler
+    from .machine import timed_ipsph_run
     rows = []
     with tempfile.TemporaryDirectory(prefix="ipsph-first-frame-") as tmp:
-        env = dict(os.environ, NUMBA_CACHE_DIR=str(Path(tmp) / "numba-cache"), NUMBA_NUM_THREADS=str(threads))
-        root = str(Path(__file__).resolve().parents[2])
-        env["PYTHONPATH"] = os.pathsep.join(p for p in (root, env.get("PYTHONPATH", "")) if p)
+        env = dict(os.environ, NUMBA_CACHE_DIR=str(Path(tmp) / "numba-cache"))
         for cache in ("cold", "warm"):
             out = Path(tmp) / f"out-{cache}"
-            cmd = [sys.executable, "-m", "ipsph", "run", "--end-time", "0.04", "--no-render", "--quiet",
-                   "--threads", str(threads), "-o", str(out)]
-            sampler = LoadSampler(0.5).start()
-            t0 = time.perf_counter()
-            try:
-                proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=timeout)
-                code, err = proc.returncode, proc.stderr
-            except subprocess.TimeoutExpired:
-                code, err = -1, f"timed out after {timeout} s"
-            secs = time.perf_counter() - t0
-            load = sampler.stop()
-            frames = len(list((out / "frames").glob("*.vtu"))) if (out / "frames").is_dir() else 0
+            r = timed_ipsph_run(["--end-time", "0.04", "--no-render"], out, threads, timeout, env)
             try:  # run.json splits the time: setup (sampling, output folder) and the time loop
                 run_info = json.loads((out / "run.json").read_text())
             except (OSError, json.JSONDecodeError):
                 run_info = {}
+            secs, code, frames, load = r["seconds"], r["exit_code"], r["frames"], r["load"]
             rows.append({"cache": cache, "seconds": secs, "ok": code == 0 and frames >= 2, "exit_code": code,
                          "frames": frames, "setup_seconds": run_info.get("setup_seconds"),
                          "loop_seconds": run_info.get("wall_seconds"), "load": load.as_dict(),
                          "others_cores": load.others_busy_mean * load.cpus,
-                         "stderr_tail": (err or "")[-1000:], "command": cmd})
+                         "stderr_tail": r["stderr_tail"], "command": r["command"]})
             _log(f"first frame ({cache} cache): {secs:.1f} s, exit {code}, {frames} frames, "
                  f"others {rows[-1]['others_cores']:.2f} cores")
     return rows

@@ -262,3 +262,37 @@ def run_json_worker(cmd: list[str], env: dict, timeout: float, what: str, where:
     result["load"] = load.as_dict() if load else None
     result["command"] = cmd
     return result
+
+
+def timed_ipsph_run(args: list[str], out, threads: int, timeout: float, env: dict | None = None) -> dict:
+    """`python -m ipsph run ARGS -o OUT` in a fresh process with `threads` Numba threads (this
+    checkout first on PYTHONPATH), timed, with the machine's load sampled while it runs.
+
+    Returns seconds (wall), cpu_seconds (the process and its children: the render process),
+    exit_code (-1 on timeout), stderr_tail, load (LoadSummary), frames and pngs written to OUT.
+    """
+    import resource
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    out = Path(out)
+    env = dict(os.environ if env is None else env, NUMBA_NUM_THREADS=str(threads))
+    root = str(Path(__file__).resolve().parents[2])
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (root, env.get("PYTHONPATH", "")) if p)
+    cmd = [sys.executable, "-m", "ipsph", "run", *args, "--quiet", "--threads", str(threads), "-o", str(out)]
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    sampler = LoadSampler(0.5).start()
+    t0 = time.perf_counter()
+    try:
+        proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=timeout)
+        code, err = proc.returncode, proc.stderr
+    except subprocess.TimeoutExpired:
+        code, err = -1, f"timed out after {timeout} s"
+    secs = time.perf_counter() - t0
+    load = sampler.stop()
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    count = lambda folder, pattern: len(list((out / folder).glob(pattern))) if (out / folder).is_dir() else 0  # noqa: E731
+    return {"seconds": secs, "exit_code": code, "stderr_tail": (err or "")[-1000:], "load": load,
+            "cpu_seconds": (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime),
+            "frames": count("frames", "*.vtu"), "pngs": count("renders", "*.png"), "command": cmd}

@@ -16,11 +16,7 @@ other processes kept more than --max-load cores busy is shown as loaded and left
 """
 from __future__ import annotations
 
-import os
-import resource
 import statistics
-import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -92,31 +88,13 @@ def table(rows: list[dict], markdown: bool) -> str:
 
 
 def _one_run(render: bool, threads: int, tmp: Path, k: int, timeout: float) -> dict:
-    from .machine import LoadSampler
-    out = tmp / f"out-{'render' if render else 'plain'}-{k}"
-    cmd = [sys.executable, "-m", "ipsph", "run", "--quiet", "--threads", str(threads), "-o", str(out)]
-    if not render:
-        cmd.append("--no-render")
-    env = dict(os.environ, NUMBA_NUM_THREADS=str(threads))
-    root = str(Path(__file__).resolve().parents[2])
-    env["PYTHONPATH"] = os.pathsep.join(p for p in (root, env.get("PYTHONPATH", "")) if p)
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    sampler = LoadSampler(0.5).start()
-    t0 = time.perf_counter()
-    try:
-        proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=timeout)
-        code, err = proc.returncode, proc.stderr
-    except subprocess.TimeoutExpired:
-        code, err = -1, f"timed out after {timeout} s"
-    secs = time.perf_counter() - t0
-    load = sampler.stop()
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    pngs = len(list((out / "renders").glob("*.png"))) if (out / "renders").is_dir() else 0
-    frames = len(list((out / "frames").glob("*.vtu"))) if (out / "frames").is_dir() else 0
-    return {"render": render, "seconds": secs, "cpu_seconds": (after.ru_utime + after.ru_stime)
-            - (before.ru_utime + before.ru_stime), "exit_code": code, "frames": frames, "pngs": pngs,
-            "ok": code == 0 and frames > 0 and (pngs == frames if render else True),
-            "others_cores": load.others_busy_mean * load.cpus, "stderr_tail": (err or "")[-600:]}
+    from .machine import timed_ipsph_run
+    r = timed_ipsph_run([] if render else ["--no-render"], tmp / f"out-{'render' if render else 'plain'}-{k}",
+                        threads, timeout)
+    return {"render": render, "seconds": r["seconds"], "cpu_seconds": r["cpu_seconds"],
+            "exit_code": r["exit_code"], "frames": r["frames"], "pngs": r["pngs"],
+            "ok": r["exit_code"] == 0 and r["frames"] > 0 and (r["pngs"] == r["frames"] if render else True),
+            "others_cores": r["load"].others_busy_mean * r["load"].cpus, "stderr_tail": r["stderr_tail"]}
 
 
 def render_overhead(repeats: int, threads: int, max_load: float, timeout: float = 900.0, log=print) -> dict:
