@@ -1,9 +1,13 @@
-"""Offscreen renders of particle frames, and videos of them (pyvista through EGL, lazily imported).
+"""Offscreen renders of particle frames, and videos of them (VTK through EGL, lazily imported).
 
 Look (the paper's figures): particles coloured by speed, slowest dark blue -> fastest white, over a
 colour range fixed for the whole series; particles drawn as lit sphere impostors with their physical
-radius (vtkPointGaussianMapper, world-space size); the boundary as a translucent surface of the input
-meshes; a fixed camera fitted to the scene bounds; a scalar bar "speed [m/s]" (VTK text drops '|').
+radius; the boundary as a translucent surface of the input meshes; a fixed camera fitted to the scene
+bounds; a scalar bar "speed [m/s]" (VTK text drops '|').
+
+Two engines draw the same picture: "splat" (the default) draws the static layers once through VTK
+and rasterises the particles with Numba (ipsph.splat); "vtk" draws everything through VTK
+(vtkPointGaussianMapper impostors) and is the reference the tests hold the splat engine to.
 
 Headless facts (ecosystem.md): set VTK_DEFAULT_OPENGL_WINDOW=vtkEGLRenderWindow before the first
 render window; a missing GL stack segfaults, so `gl_available` probes in a subprocess; anti-aliasing

@@ -81,6 +81,15 @@ def test_colormap_runs_dark_blue_to_white_with_rising_lightness():
     assert np.allclose(rgb[-1], 1.0) and rgb[0, 2] > rgb[0, 0]  # ends white, starts blue
 
 
+def test_render_lut_is_the_plot_colormap():
+    """The renders' lookup table (built without matplotlib) is the colormap the plots and docs use."""
+    from ipsph.render import speed_lut_rgb
+
+    lut = speed_lut_rgb()
+    assert lut.shape == (256, 3)
+    np.testing.assert_allclose(lut, speed_colormap()(np.linspace(0.0, 1.0, 256))[:, :3], atol=1.0 / 255)
+
+
 @pytest.mark.parametrize("view", list(VIEWS))
 def test_camera_frames_every_corner(view):
     bounds = (-1.0, 3.0, 0.0, 1.0, -0.5, 0.5)
