@@ -433,9 +433,6 @@ class FrameRenderer:
         self.window.GetPixelData(0, 0, w - 1, h - 1, 1, buf, 0)
         return vtk_to_numpy(buf).reshape(h, w, 3)[::-1].copy()
 
-    def _shot(self) -> np.ndarray:
-        return self._grab().astype(np.float32)
-
     def _set_background(self, colour: str | None) -> None:
         """A plain background colour, or None for the frames' gradient."""
         ren = self.renderer
@@ -447,12 +444,13 @@ class FrameRenderer:
             ren.GradientBackgroundOff()
 
     def _over_black_and_white(self) -> tuple[np.ndarray, np.ndarray]:
-        """What is visible drawn over black, and its transmittance (over white minus over black)."""
+        """What is visible drawn over black, and its transmittance x 255 (over white minus over
+        black): both exact in 8 bits, since both come from 8-bit images."""
         self._set_background("#000000")
-        black = self._shot()
+        black = self._grab()
         self._set_background("#ffffff")
-        white = self._shot()
-        return black, np.clip((white - black) / 255.0, 0.0, 1.0)
+        white = self._grab()
+        return black, np.maximum(white, black) - black
 
     def _wall_depth(self) -> np.ndarray:
         """Eye distance of the nearest wall per pixel (walls drawn opaque), inf where none."""
@@ -486,14 +484,14 @@ class FrameRenderer:
         wall_depth = self._wall_depth()
         show(self._walls, False)
         self._set_background(None)
-        background = self._shot()
+        background = self._grab().astype(np.float32)
         show(self._overlays, True)
         over_rgb, over_t = self._over_black_and_white()
         show(self._walls, True)
         self._set_background(None)
         self._actor.SetVisibility(True)
         self._time_text.SetVisibility(True)
-        static = over_rgb + over_t * (wall_rgb + wall_t * background)
+        static = over_rgb + over_t / np.float32(255) * (wall_rgb + wall_t / np.float32(255) * background)
         static = np.clip(static + 0.5, 0, 255).astype(np.uint8)
 
         cam = self.renderer.GetActiveCamera()

@@ -7,7 +7,8 @@ series, so `ipsph.render.FrameRenderer` draws it once through VTK into layers, a
 the particles are rasterised here and composited over those layers:
 
 - `S`, `T`: the walls drawn over black, and their per-pixel transmittance (from drawing them over
-  black and over white: T = (white - black) / 255). A pixel seen through the walls is S + T * C.
+  black and over white: T = (white - black) / 255, kept as the 8-bit difference). A pixel seen
+  through the walls is S + T * C.
 - `Zs`: eye distance of the nearest wall surface per pixel (walls drawn opaque once); a particle
   nearer than it is in front of every wall at that pixel.
 - `O`, `To`: the 2D overlays (scalar bar, title) and their transmittance, drawn on top of all.
@@ -114,7 +115,8 @@ def composite(box, owner, shade, zbuf, colour, wall_depth, wall_rgb, wall_t, ove
               out):  # pragma: no cover - jit
     """Within `box` (y0, y1, x0, x1), put each particle pixel's lit colour into `out` (which holds
     the static frame) behind or in front of the walls by depth, under the 2D overlays; reset the
-    pixel's `owner` and `zbuf` for the next frame."""
+    pixel's `owner` and `zbuf` for the next frame. Layers are uint8: colours over black and
+    transmittances x 255."""
     y0, y1, x0, x1 = box
     for y in range(y0, y1 + 1):
         for x in range(x0, x1 + 1):
@@ -126,8 +128,8 @@ def composite(box, owner, shade, zbuf, colour, wall_depth, wall_rgb, wall_t, ove
             for c in range(3):
                 v = colour[i, c] * s
                 if behind:
-                    v = wall_rgb[y, x, c] + wall_t[y, x, c] * v
-                v = over_rgb[y, x, c] + over_t[y, x, c] * v
+                    v = wall_rgb[y, x, c] + wall_t[y, x, c] * v * (1.0 / 255.0)
+                v = over_rgb[y, x, c] + over_t[y, x, c] * v * (1.0 / 255.0)
                 v = min(max(v, 0.0), 255.0)
                 out[y, x, c] = np.uint8(v + 0.5)
             owner[y, x] = -1
@@ -181,6 +183,6 @@ def warm_up() -> None:
     sx, sy, dist, rad = (np.empty(1) for _ in range(4))
     project(np.zeros((1, 3)), np.eye(4), 1.0, 2.0, 2.0, 0.1, sx, sy, dist, rad)
     box = splat(2.0 * one, 2.0 * one, one, 1.5 * one, 0.1, LIGHT, zbuf, owner, shade)
-    layer, t = np.zeros((h, w, 3), np.float32), np.ones((h, w, 3), np.float32)
+    layer, t = np.zeros((h, w, 3), np.uint8), np.full((h, w, 3), 255, np.uint8)
     composite(box, owner, shade, zbuf, np.ones((1, 3), np.float32), zbuf.copy(), layer, t, layer, t, img)
     encode_png(img)
