@@ -89,6 +89,27 @@ def default_max_particles() -> int:
     return int(avail // 2 // BYTES_PER_PARTICLE)
 
 
+RENDER_BYTES_PER_PIXEL = 64  # render process: static layers, depth/owner/shade buffers, the bake's
+                             # float images, the frame and PNG rows, VTK's colour and depth buffers
+
+
+def check_render_size(scene: Scene) -> None:
+    """Refuse an image size whose render process would need over half the available memory (exit 2)."""
+    from .errors import ConfigError
+    px = int(scene.render.width) * int(scene.render.height)
+    need = px * RENDER_BYTES_PER_PIXEL
+    try:
+        import psutil
+        avail = psutil.virtual_memory().available
+    except Exception:  # pragma: no cover - psutil is a dependency
+        avail = 8 << 30
+    if need > avail // 2:
+        raise ConfigError(
+            f"render.width x render.height = {scene.render.width} x {scene.render.height} would need about "
+            f"{need / 2**30:.1f} GiB in the render process, over half the available {avail / 2**30:.1f} GiB; "
+            f"use a smaller image, or --no-render and `ipsph render OUT --size W H` on a larger machine")
+
+
 def check_size(scene: Scene, max_particles: int | None) -> int:
     """Estimate the fluid count before sampling and refuse what would not fit (exit 2)."""
     from . import sampling
@@ -343,6 +364,7 @@ def run(scene: Scene, opts: RunOptions) -> int:
         check_geometry(scene)
     renderer = None
     if opts.render and scene.render.enabled:  # start it now: it imports VTK while we sample
+        check_render_size(scene)
         from .render_worker import BackgroundRenderer
         renderer = BackgroundRenderer()
     try:

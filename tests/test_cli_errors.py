@@ -173,6 +173,22 @@ def test_size_guard_hints_at_millimetres(tmp_path, capsys):
     assert "400 x 400 x 400 m" in line and "millimetres" in line and "0.001" in line, line
 
 
+def test_render_size_guard_names_the_image_and_the_way_out(tmp_path, capsys, monkeypatch):
+    """An image whose render process would not fit in half the memory: exit 2 before output."""
+    import collections
+
+    import psutil
+    mem = collections.namedtuple("mem", "available")
+    monkeypatch.setattr(psutil, "virtual_memory", lambda: mem(1 << 30))  # a 1 GiB machine
+    s = scene_file(tmp_path, TANK.format(fluid=BOX_FLUID).replace("enabled = false", "width = 8192\nheight = 8192"))
+    out = tmp_path / "out"
+    code = cli.main(["run", str(s), "--quiet", "--threads", "1", "-o", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2 and not (out / RUN_JSON).exists(), err
+    line = one_error_line(err)
+    assert "8192 x 8192" in line and "GiB" in line and "--no-render" in line, line
+
+
 def test_radius_too_large_for_the_fluid(tmp_path, capsys):
     s = scene_file(tmp_path, TANK.format(fluid=BOX_FLUID))
     # r = 0.1: d = 0.2, round(0.4 / 0.2) - 1 = 1 particle across the 0.4 m column
