@@ -466,10 +466,14 @@ class FrameRenderer:
         self.window.GetZbufferData(0, 0, w - 1, h - 1, buf)
         for a, o in zip(self._walls, saved):
             a.GetProperty().SetOpacity(o)
-        zb = vtk_to_numpy(buf).reshape(h, w)[::-1].astype(np.float64)
+        zb = vtk_to_numpy(buf).reshape(h, w)[::-1]
         near, far = self._clipping
-        dist = 2.0 * near * far / ((far + near) - (2.0 * zb - 1.0) * (far - near))
-        return np.where(zb >= 1.0, np.inf, dist).astype(np.float32)
+        dist = np.empty((h, w), np.float32)
+        for r in range(0, h, 128):  # row blocks: no full-frame float64 temporaries
+            z = zb[r:r + 128].astype(np.float64)
+            d = 2.0 * near * far / ((far + near) - (2.0 * z - 1.0) * (far - near))
+            dist[r:r + 128] = np.where(z >= 1.0, np.inf, d)
+        return dist
 
     def _bake(self) -> None:
         """Draw the static layers once (see ipsph.splat): walls, their transmittance and depth,
@@ -484,15 +488,20 @@ class FrameRenderer:
         wall_depth = self._wall_depth()
         show(self._walls, False)
         self._set_background(None)
-        background = self._grab().astype(np.float32)
+        background = self._grab()
         show(self._overlays, True)
         over_rgb, over_t = self._over_black_and_white()
         show(self._walls, True)
         self._set_background(None)
         self._actor.SetVisibility(True)
         self._time_text.SetVisibility(True)
-        static = over_rgb + over_t / np.float32(255) * (wall_rgb + wall_t / np.float32(255) * background)
-        static = np.clip(static + 0.5, 0, 255).astype(np.uint8)
+        static = np.empty_like(background)
+        k = np.float32(1.0 / 255.0)
+        for r in range(0, static.shape[0], 128):  # row blocks: no full-frame float temporaries
+            rows = slice(r, r + 128)
+            f = wall_rgb[rows] + wall_t[rows] * k * background[rows].astype(np.float32)
+            f = over_rgb[rows] + over_t[rows] * k * f
+            static[rows] = np.clip(f + 0.5, 0, 255).astype(np.uint8)
 
         cam = self.renderer.GetActiveCamera()
         view = np.array([[cam.GetViewTransformMatrix().GetElement(i, j) for j in range(4)]

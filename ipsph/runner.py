@@ -89,8 +89,8 @@ def default_max_particles() -> int:
     return int(avail // 2 // BYTES_PER_PARTICLE)
 
 
-RENDER_BYTES_PER_PIXEL = 64  # render process: static layers, depth/owner/shade buffers, the bake's
-                             # float images, the frame and PNG rows, VTK's colour and depth buffers
+RENDER_BYTES_PER_PIXEL = 112  # render process peak: static layers, depth/owner/shade buffers, frame and
+                              # PNG rows, VTK's and llvmpipe's framebuffers (measured 100 B/px at 3840x2160)
 
 
 def check_render_size(scene: Scene) -> None:
