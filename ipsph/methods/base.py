@@ -54,6 +54,7 @@ class Method:
         self.k = np.zeros(n)
         self.drho = np.zeros(n)
         self.scratch_v = np.zeros((n, 3))
+        self.gb = np.zeros((n, 3))                  # sum_b m_b grad W_ib, for the pressure solves
         state.zeros("pressure")                     # output field, follows reordering
         self.dt_prev: float | None = None
         self.report = StepReport()

@@ -16,7 +16,7 @@ import numpy as np
 
 from .base import Method, StepReport
 from .sph_passes import (apply_stiffness, density_factor_lambda, density_residual, divergence_residual,
-                         mean, xsph)
+                         mean, wall_gradient, xsph)
 
 
 def divergence_solve(method: Method, dt: float, k_total: np.ndarray) -> tuple[int, float, bool]:
@@ -32,21 +32,22 @@ def divergence_solve(method: Method, dt: float, k_total: np.ndarray) -> tuple[in
     st, cfg = method.state, method.cfg
     xb, mb, nf, cf, nb, cb = method.lists()
     x, v, m, h = st.x, st.v, st.m, method.h
-    k, drho = method.k, method.drho
+    k, drho, gb = method.k, method.drho, method.gb
     eta = cfg.divergence_error_pct / 100.0
-    divergence_residual(x, v, m, xb, mb, nf, cf, nb, cb, h, method.alpha, method.n_nbrs, dt, drho, k)
+    wall_gradient(x, xb, mb, nb, cb, h, gb)  # positions are fixed for the whole solve
+    divergence_residual(x, v, m, gb, nf, cf, h, method.alpha, method.n_nbrs, dt, drho, k)
     if method.dt_prev is not None:
         warm = np.where(drho > 0.0, 0.5 * np.minimum(k_total * (method.dt_prev / dt), 0.5), 0.0)
         k_total[:] = 0.0
-        apply_stiffness(x, m, xb, mb, nf, cf, nb, cb, h, warm, dt, v, k_total)
-        divergence_residual(x, v, m, xb, mb, nf, cf, nb, cb, h, method.alpha, method.n_nbrs, dt, drho, k)
+        apply_stiffness(x, m, gb, nf, cf, h, warm, dt, v, k_total)
+        divergence_residual(x, v, m, gb, nf, cf, h, method.alpha, method.n_nbrs, dt, drho, k)
     else:
         k_total[:] = 0.0
     err = dt * mean(drho) / method.rho0
     it = 0
     while it < cfg.divergence_max_iterations and (it < cfg.divergence_min_iterations or err > eta):
-        apply_stiffness(x, m, xb, mb, nf, cf, nb, cb, h, k, dt, v, k_total)
-        divergence_residual(x, v, m, xb, mb, nf, cf, nb, cb, h, method.alpha, method.n_nbrs, dt, drho, k)
+        apply_stiffness(x, m, gb, nf, cf, h, k, dt, v, k_total)
+        divergence_residual(x, v, m, gb, nf, cf, h, method.alpha, method.n_nbrs, dt, drho, k)
         err = dt * mean(drho) / method.rho0
         it += 1
     return it, err, bool(err > eta)
@@ -99,22 +100,25 @@ class DFSPH(Method):
         """[BK17 Alg. 3]: k_i = alpha_i (rho*_i - rho0) / dt^2 until mean(rho* - rho0) <= eta rho0."""
         st, cfg = self.state, self.cfg
         xb, mb, nf, cf, nb, cb = self.lists()
-        x, v, m, h, k = st.x, st.v, st.m, self.h, self.k
+        x, v, m, h, k, gb = st.x, st.v, st.m, self.h, self.k, self.gb
         eta = cfg.density_error_pct / 100.0
         k_total = st.k_dens
-        density_residual(x, v, m, xb, mb, nf, cf, nb, cb, h, self.rho, self.alpha, self.rho0, dt, self.err, k)
+        # gb from the divergence solve at these positions, unless it was switched off
+        if not cfg.divergence_solve:
+            wall_gradient(x, xb, mb, nb, cb, h, gb)
+        density_residual(x, v, m, gb, nf, cf, h, self.rho, self.alpha, self.rho0, dt, self.err, k)
         if self.dt_prev is not None:
             warm = 0.5 * np.minimum(k_total * (self.dt_prev / dt) ** 2, 0.5)
             k_total[:] = 0.0
-            apply_stiffness(x, m, xb, mb, nf, cf, nb, cb, h, warm, dt, v, k_total)
-            density_residual(x, v, m, xb, mb, nf, cf, nb, cb, h, self.rho, self.alpha, self.rho0, dt, self.err, k)
+            apply_stiffness(x, m, gb, nf, cf, h, warm, dt, v, k_total)
+            density_residual(x, v, m, gb, nf, cf, h, self.rho, self.alpha, self.rho0, dt, self.err, k)
         else:
             k_total[:] = 0.0
         err = mean(self.err) / self.rho0
         it = 0
         while it < cfg.density_max_iterations and (it < cfg.density_min_iterations or err > eta):
-            apply_stiffness(x, m, xb, mb, nf, cf, nb, cb, h, k, dt, v, k_total)
-            density_residual(x, v, m, xb, mb, nf, cf, nb, cb, h, self.rho, self.alpha, self.rho0, dt, self.err, k)
+            apply_stiffness(x, m, gb, nf, cf, h, k, dt, v, k_total)
+            density_residual(x, v, m, gb, nf, cf, h, self.rho, self.alpha, self.rho0, dt, self.err, k)
             err = mean(self.err) / self.rho0
             it += 1
         return it, bool(err > eta)

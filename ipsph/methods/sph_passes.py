@@ -35,22 +35,36 @@ def _buffers(rows, nf, nb):
 
 
 @njit(inline="always")
+def _fluid_buffers(rows, nf):
+    """One (rows, K_f) scratch block per chunk, for the passes that see walls through `gb`."""
+    return np.empty((min(nf.shape[0], CHUNKS), rows, nf.shape[1]))
+
+
+@njit(inline="always")
 def _chunk(c, n_chunks, n):
     """Particle range [lo, hi) of chunk c."""
     return c * n // n_chunks, (c + 1) * n // n_chunks
 
 
 @njit(inline="always")
-def _gather_x(i, x, xb, nf, cf, nb, cb, buf):
-    """buf[DX..DZ, :n_f + n_b] = x_i - x_j (fluid first, then boundary); returns (n_f, n_b)."""
+def _gather_xf(i, x, nf, cf, buf):
+    """buf[DX..DZ, :n_f] = x_i - x_j over the fluid neighbours; returns n_f."""
     n_f = cf[i]
-    n_b = cb[i]
     xi0, xi1, xi2 = x[i, 0], x[i, 1], x[i, 2]
     for k in range(n_f):
         j = nf[i, k]
         buf[DX, k] = xi0 - x[j, 0]
         buf[DY, k] = xi1 - x[j, 1]
         buf[DZ, k] = xi2 - x[j, 2]
+    return n_f
+
+
+@njit(inline="always")
+def _gather_x(i, x, xb, nf, cf, nb, cb, buf):
+    """buf[DX..DZ, :n_f + n_b] = x_i - x_j (fluid first, then boundary); returns (n_f, n_b)."""
+    n_f = _gather_xf(i, x, nf, cf, buf)
+    n_b = cb[i]
+    xi0, xi1, xi2 = x[i, 0], x[i, 1], x[i, 2]
     for k in range(n_b):
         b = nb[i, k]
         buf[DX, n_f + k] = xi0 - xb[b, 0]
@@ -142,13 +156,44 @@ def _gather_rate(i, v, m, mb, nf, nb, n_f, n_b, buf):
         buf[C3, n_f + k] = vi2
 
 
+@njit(parallel=True, fastmath=FAST, cache=True)
+def wall_gradient(x, xb, mb, nb, cb, h, gb):
+    """gb_i = sum_b m_b grad W_ib: what the walls add to every pressure-solve pass.
+
+    During the divergence and density solves the positions are fixed, so the wall terms of
+    D rho_i/Dt (v_i . gb_i) and of the velocity update (k_i gb_i) need the wall neighbours once
+    per solve, not once per pass.
+    """
+    for i in prange(x.shape[0]):
+        xi0, xi1, xi2 = x[i, 0], x[i, 1], x[i, 2]
+        a0 = 0.0
+        a1 = 0.0
+        a2 = 0.0
+        for k in range(cb[i]):
+            b = nb[i, k]
+            d0, d1, d2 = xi0 - xb[b, 0], xi1 - xb[b, 1], xi2 - xb[b, 2]
+            f = mb[b] * grad_w_factor(np.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
+            a0 += f * d0
+            a1 += f * d1
+            a2 += f * d2
+        gb[i, 0] = a0
+        gb[i, 1] = a1
+        gb[i, 2] = a2
+
+
 @njit(inline="always", fastmath=FAST)
-def _density_rate(i, x, v, m, xb, mb, nf, cf, nb, cb, h, buf):
-    """D rho_i / Dt = sum_j m_j (v_i - v_j) . grad W_ij + sum_b m_b v_i . grad W_ib   [BK17 eq. 4]."""
-    n_f, n_b = _gather_x(i, x, xb, nf, cf, nb, cb, buf)
-    _gather_rate(i, v, m, mb, nf, nb, n_f, n_b, buf)
-    drho = 0.0
-    for k in range(n_f + n_b):
+def _density_rate(i, x, v, m, gb, nf, cf, h, buf):
+    """D rho_i / Dt = sum_j m_j (v_i - v_j) . grad W_ij + v_i . gb_i   [BK17 eq. 4; gb: wall_gradient]."""
+    n_f = _gather_xf(i, x, nf, cf, buf)
+    vi0, vi1, vi2 = v[i, 0], v[i, 1], v[i, 2]
+    for k in range(n_f):
+        j = nf[i, k]
+        buf[C0, k] = m[j]
+        buf[C1, k] = vi0 - v[j, 0]
+        buf[C2, k] = vi1 - v[j, 1]
+        buf[C3, k] = vi2 - v[j, 2]
+    drho = vi0 * gb[i, 0] + vi1 * gb[i, 1] + vi2 * gb[i, 2]
+    for k in range(n_f):
         d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
         f = buf[C0, k] * grad_w_factor(np.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
         drho += f * (buf[C1, k] * d0 + buf[C2, k] * d1 + buf[C3, k] * d2)
@@ -156,58 +201,56 @@ def _density_rate(i, x, v, m, xb, mb, nf, cf, nb, cb, h, buf):
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)
-def divergence_residual(x, v, m, xb, mb, nf, cf, nb, cb, h, alpha, n_nbrs, dt, drho, k):
+def divergence_residual(x, v, m, gb, nf, cf, h, alpha, n_nbrs, dt, drho, k):
     """Divergence-solve residual and stiffness [BK17 Alg. 2]:
     drho_i = max(D rho_i/Dt, 0), zero for particles with < 20 neighbours; k_i = alpha_i drho_i / dt."""
-    bufs = _buffers(7, nf, nb)
+    bufs = _fluid_buffers(7, nf)
     for c in prange(bufs.shape[0]):
         buf = bufs[c]
         lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
         for i in range(lo, hi):
             d = 0.0
             if n_nbrs[i] >= 20:
-                d = max(_density_rate(i, x, v, m, xb, mb, nf, cf, nb, cb, h, buf), 0.0)
+                d = max(_density_rate(i, x, v, m, gb, nf, cf, h, buf), 0.0)
             drho[i] = d
             k[i] = alpha[i] * d / dt
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)
-def density_residual(x, v, m, xb, mb, nf, cf, nb, cb, h, rho, alpha, rho0, dt, rho_err, k):
+def density_residual(x, v, m, gb, nf, cf, h, rho, alpha, rho0, dt, rho_err, k):
     """Density-solve residual and stiffness [BK17 Alg. 3]:
     rho*_i = max(rho_i + dt D rho_i/Dt, rho0);  rho_err_i = rho*_i - rho0;  k_i = alpha_i rho_err_i / dt^2."""
-    bufs = _buffers(7, nf, nb)
+    bufs = _fluid_buffers(7, nf)
     for c in prange(bufs.shape[0]):
         buf = bufs[c]
         lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
         for i in range(lo, hi):
-            rate = _density_rate(i, x, v, m, xb, mb, nf, cf, nb, cb, h, buf)
+            rate = _density_rate(i, x, v, m, gb, nf, cf, h, buf)
             e = max(rho[i] + dt * rate, rho0) - rho0
             rho_err[i] = e
             k[i] = alpha[i] * e / (dt * dt)
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)
-def apply_stiffness(x, m, xb, mb, nf, cf, nb, cb, h, k, dt, v, k_total):
-    """v_i -= dt [sum_j m_j (k_i + k_j) grad W_ij + sum_b m_b k_i grad W_ib];  k_total_i += k_i.
+def apply_stiffness(x, m, gb, nf, cf, h, k, dt, v, k_total):
+    """v_i -= dt [sum_j m_j (k_i + k_j) grad W_ij + k_i gb_i];  k_total_i += k_i  (gb: wall_gradient).
 
     In place: iteration i reads k of its neighbours and writes v_i, k_total_i only.
     """
-    bufs = _buffers(4, nf, nb)
+    bufs = _fluid_buffers(4, nf)
     for c in prange(bufs.shape[0]):
         buf = bufs[c]
         lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
         for i in range(lo, hi):
-            n_f, n_b = _gather_x(i, x, xb, nf, cf, nb, cb, buf)
+            n_f = _gather_xf(i, x, nf, cf, buf)
             ki = k[i]
             for n in range(n_f):
                 j = nf[i, n]
                 buf[C0, n] = m[j] * (ki + k[j])
-            for n in range(n_b):
-                buf[C0, n_f + n] = mb[nb[i, n]] * ki
-            a0, a1, a2 = _weighted_gradient(n_f + n_b, buf, C0, h)
-            v[i, 0] -= dt * a0
-            v[i, 1] -= dt * a1
-            v[i, 2] -= dt * a2
+            a0, a1, a2 = _weighted_gradient(n_f, buf, C0, h)
+            v[i, 0] -= dt * (a0 + ki * gb[i, 0])
+            v[i, 1] -= dt * (a1 + ki * gb[i, 1])
+            v[i, 2] -= dt * (a2 + ki * gb[i, 2])
             k_total[i] += ki
 
 
