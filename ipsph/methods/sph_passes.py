@@ -140,8 +140,8 @@ def density_factor_lambda(x, m, xb, mb, nf, cf, nb, cb, h, rho0, rho, alpha, lam
 
 
 @njit(inline="always")
-def _gather_rate(i, v, m, mb, nf, nb, n_f, n_b, buf):
-    """buf[C0] = m_j (m_b), buf[C1..C3] = v_i - v_j (v_i for walls): what D rho_i/Dt needs."""
+def _gather_rate_f(i, v, m, nf, n_f, buf):
+    """buf[C0] = m_j, buf[C1..C3] = v_i - v_j over the fluid neighbours: what D rho_i/Dt needs."""
     vi0, vi1, vi2 = v[i, 0], v[i, 1], v[i, 2]
     for k in range(n_f):
         j = nf[i, k]
@@ -149,6 +149,13 @@ def _gather_rate(i, v, m, mb, nf, nb, n_f, n_b, buf):
         buf[C1, k] = vi0 - v[j, 0]
         buf[C2, k] = vi1 - v[j, 1]
         buf[C3, k] = vi2 - v[j, 2]
+
+
+@njit(inline="always")
+def _gather_rate(i, v, m, mb, nf, nb, n_f, n_b, buf):
+    """buf[C0] = m_j (m_b), buf[C1..C3] = v_i - v_j (v_i for walls): what D rho_i/Dt needs."""
+    _gather_rate_f(i, v, m, nf, n_f, buf)
+    vi0, vi1, vi2 = v[i, 0], v[i, 1], v[i, 2]
     for k in range(n_b):
         buf[C0, n_f + k] = mb[nb[i, k]]
         buf[C1, n_f + k] = vi0
@@ -185,14 +192,8 @@ def wall_gradient(x, xb, mb, nb, cb, h, gb):
 def _density_rate(i, x, v, m, gb, nf, cf, h, buf):
     """D rho_i / Dt = sum_j m_j (v_i - v_j) . grad W_ij + v_i . gb_i   [BK17 eq. 4; gb: wall_gradient]."""
     n_f = _gather_xf(i, x, nf, cf, buf)
-    vi0, vi1, vi2 = v[i, 0], v[i, 1], v[i, 2]
-    for k in range(n_f):
-        j = nf[i, k]
-        buf[C0, k] = m[j]
-        buf[C1, k] = vi0 - v[j, 0]
-        buf[C2, k] = vi1 - v[j, 1]
-        buf[C3, k] = vi2 - v[j, 2]
-    drho = vi0 * gb[i, 0] + vi1 * gb[i, 1] + vi2 * gb[i, 2]
+    _gather_rate_f(i, v, m, nf, n_f, buf)
+    drho = v[i, 0] * gb[i, 0] + v[i, 1] * gb[i, 1] + v[i, 2] * gb[i, 2]
     for k in range(n_f):
         d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
         f = buf[C0, k] * grad_w_factor(np.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
