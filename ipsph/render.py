@@ -68,13 +68,27 @@ GL_HINT = ("install an EGL + Mesa stack (apt-get install -y --no-install-recomme
 _PROBE = """
 import os
 os.environ["VTK_DEFAULT_OPENGL_WINDOW"] = "vtkEGLRenderWindow"
-import pyvista as pv
-p = pv.Plotter(off_screen=True, window_size=(32, 24))
-p.disable_anti_aliasing()
-p.add_mesh(pv.Sphere(), color="white")
-img = p.screenshot(return_img=True)
-p.close()
-assert img.shape[:2] == (24, 32) and img.max() > 0, "blank probe image"
+import vtkmodules.vtkRenderingOpenGL2
+from vtkmodules.vtkCommonCore import vtkUnsignedCharArray
+from vtkmodules.vtkFiltersSources import vtkSphereSource
+from vtkmodules.vtkRenderingCore import vtkActor, vtkPolyDataMapper, vtkRenderer, vtkRenderWindow
+src = vtkSphereSource()
+mapper = vtkPolyDataMapper()
+mapper.SetInputConnection(src.GetOutputPort())
+actor = vtkActor()
+actor.SetMapper(mapper)
+ren = vtkRenderer()
+ren.AddActor(actor)
+win = vtkRenderWindow()
+win.SetOffScreenRendering(True)
+win.SetMultiSamples(0)
+win.SetSize(32, 24)
+win.AddRenderer(ren)
+win.Render()
+buf = vtkUnsignedCharArray()
+win.GetPixelData(0, 0, 31, 23, 1, buf, 0)
+assert buf.GetNumberOfTuples() == 32 * 24 and max(buf.GetRange(0)) > 0, "blank probe image"
+win.Finalize()
 print("ok")
 """
 
