@@ -79,14 +79,18 @@ def check_output_folder(out: Path, overwrite: bool, resume: bool) -> None:
             (out / name).unlink(missing_ok=True)
 
 
-def default_max_particles() -> int:
-    """Half the available memory at BYTES_PER_PARTICLE per particle."""
+def available_memory() -> int:
+    """Bytes of memory available to this run now (psutil; 8 GiB if it cannot tell)."""
     try:
         import psutil
-        avail = psutil.virtual_memory().available
+        return int(psutil.virtual_memory().available)
     except Exception:  # pragma: no cover - psutil is a dependency
-        avail = 8 << 30
-    return int(avail // 2 // BYTES_PER_PARTICLE)
+        return 8 << 30
+
+
+def default_max_particles() -> int:
+    """Half the available memory at BYTES_PER_PARTICLE per particle."""
+    return int(available_memory() // 2 // BYTES_PER_PARTICLE)
 
 
 RENDER_BYTES_PER_PIXEL = 112  # render process peak: static layers, depth/owner/shade buffers, frame and
@@ -98,11 +102,7 @@ def check_render_size(scene: Scene) -> None:
     from .errors import ConfigError
     px = int(scene.render.width) * int(scene.render.height)
     need = px * RENDER_BYTES_PER_PIXEL
-    try:
-        import psutil
-        avail = psutil.virtual_memory().available
-    except Exception:  # pragma: no cover - psutil is a dependency
-        avail = 8 << 30
+    avail = available_memory()
     if need > avail // 2:
         raise ConfigError(
             f"render.width x render.height = {scene.render.width} x {scene.render.height} would need about "
