@@ -31,7 +31,7 @@ from .errors import OutputError
 from .model import Scene
 
 CHECKPOINT_FILE = "checkpoint.npz"
-FORMAT = 1
+FORMAT = 2
 _EXCLUDED = ("output", "render", "name", "source")  # do not change the physics
 
 

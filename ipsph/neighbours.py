@@ -115,6 +115,7 @@ def gather_neighbours(xq, xs, cell_start, origin, inv_cell, dims, radius, same_s
         cy = min(max(int((xi1 - origin[1]) * inv_cell), 0), ny - 1)
         cz = min(max(int((xi2 - origin[2]) * inv_cell), 0), nz - 1)
         n = 0
+        row_i = idx[i]
         for z in range(max(cz - reach, 0), min(cz + reach, nz - 1) + 1):
             z_lo = origin[2] + z * cell
             dz = max(z_lo - xi2, xi2 - (z_lo + cell), 0.0)
@@ -133,9 +134,13 @@ def gather_neighbours(xq, xs, cell_start, origin, inv_cell, dims, radius, same_s
                     d1 = xi1 - xs[j, 1]
                     d2 = xi2 - xs[j, 2]
                     # branch-free append: always store, advance only for a hit (candidates
-                    # fail about 4 times in 5, so a branch here mispredicts a lot)
-                    idx[i, min(n, k_max - 1)] = j
-                    n += (d0 * d0 + d1 * d1 + d2 * d2 < r2) and not (same_set and j == i)
+                    # fail about 3 times in 4, so a branch here mispredicts a lot; `and` would
+                    # be a branch too, hence the bitwise & on the comparisons)
+                    row_i[min(n, k_max - 1)] = j
+                    hit = d0 * d0 + d1 * d1 + d2 * d2 < r2
+                    if same_set:
+                        hit = hit & (j != i)
+                    n += np.int64(hit)
         cnt[i] = n
     best = 0
     for i in range(xq.shape[0]):

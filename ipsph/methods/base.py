@@ -45,6 +45,10 @@ class Method:
         self.g = np.asarray(scene.gravity, dtype=np.float64)
         self.cfg = scene.solver
         n = state.n
+        # one fluid mass (one rest density and radius per scene): the passes take it as a scalar
+        self.mf = float(state.m[0]) if n else 0.0
+        if n and not np.all(state.m == self.mf):
+            raise ValueError("all fluid particles must have the same mass")
         # per-step scratch (valid only inside a step, in the current particle order)
         self.rho = np.zeros(n)
         self.alpha = np.zeros(n)

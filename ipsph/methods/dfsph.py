@@ -15,34 +15,41 @@ from __future__ import annotations
 import numpy as np
 
 from .base import Method, StepReport
-from .sph_passes import (apply_stiffness, density_factor_lambda, density_residual, divergence_residual,
-                         mean, wall_gradient, xsph)
+from .sph_passes import (NO_DISPLACEMENT, apply_stiffness, density_factor_lambda, density_residual,
+                         divergence_residual, mean, xsph)
 
 
-def divergence_solve(method: Method, dt: float, k_total: np.ndarray) -> tuple[int, float, bool]:
+def divergence_solve(method: Method, dt: float, k_total: np.ndarray,
+                     rate: np.ndarray | None = None) -> tuple[int, float, bool]:
     """DFSPH divergence solve on `method.state.v` at the current positions [BK17 Alg. 2].
 
     Iterates k_i = alpha_i max(D rho_i/Dt, 0) / dt and the velocity correction until
     dt * mean(D rho/Dt) <= eta_v rho0, between the configured min and max iterations.
     Warm start: half the previous step's total stiffness, rescaled by dt_prev/dt and capped,
-    where D rho_i/Dt > 0. `k_total` receives everything applied (the next warm start).
-    Needs method.alpha and method.n_nbrs at the current positions.
+    where D rho_i/Dt > 0 (and the particle has >= 20 neighbours). `rate`, when given, is a
+    D rho_i/Dt already at hand for that test (IPSPH: XSPH's by-product, from the velocities just
+    before the filter), which saves one residual pass; otherwise it is computed here.
+    `k_total` receives everything applied (the next warm start).
+    Needs method.alpha, method.n_nbrs and method.gb at the current positions.
     Returns (iterations, error, hit_cap).
     """
     st, cfg = method.state, method.cfg
-    xb, mb, nf, cf, nb, cb = method.lists()
-    x, v, m, h = st.x, st.v, st.m, method.h
+    _, _, nf, cf, _, _ = method.lists()
+    x, v, m, h = st.x, st.v, method.mf, method.h
     k, drho, gb = method.k, method.drho, method.gb
     eta = cfg.divergence_error_pct / 100.0
-    wall_gradient(x, xb, mb, nb, cb, h, gb)  # positions are fixed for the whole solve
-    divergence_residual(x, v, m, gb, nf, cf, h, method.alpha, method.n_nbrs, dt, drho, k)
     if method.dt_prev is not None:
-        warm = np.where(drho > 0.0, 0.5 * np.minimum(k_total * (method.dt_prev / dt), 0.5), 0.0)
+        if rate is None:
+            divergence_residual(x, v, m, gb, nf, cf, h, method.alpha, method.n_nbrs, dt, drho, k)
+            positive = drho > 0.0
+        else:
+            positive = (rate > 0.0) & (method.n_nbrs >= 20)
+        warm = np.where(positive, 0.5 * np.minimum(k_total * (method.dt_prev / dt), 0.5), 0.0)
         k_total[:] = 0.0
         apply_stiffness(x, m, gb, nf, cf, h, warm, dt, v, k_total)
-        divergence_residual(x, v, m, gb, nf, cf, h, method.alpha, method.n_nbrs, dt, drho, k)
     else:
         k_total[:] = 0.0
+    divergence_residual(x, v, m, gb, nf, cf, h, method.alpha, method.n_nbrs, dt, drho, k)
     err = dt * mean(drho) / method.rho0
     it = 0
     while it < cfg.divergence_max_iterations and (it < cfg.divergence_min_iterations or err > eta):
@@ -70,21 +77,21 @@ class DFSPH(Method):
         st = self.state
         xb, mb, nf, cf, nb, cb = self.lists()
         with self.timer("densities"):
-            density_factor_lambda(st.x, st.m, xb, mb, nf, cf, nb, cb, self.h, self.rho0,
-                                  self.rho, self.alpha, self.lam, self.err, self.n_nbrs)
+            density_factor_lambda(st.x, self.mf, xb, mb, nf, cf, nb, cb, self.h, self.rho0,
+                                  self.rho, self.alpha, self.lam, self.err, self.n_nbrs, self.gb)
 
     def step(self, dt: float) -> StepReport:
         self.report = rep = StepReport(dt=dt)
         st, cfg = self.state, self.cfg
-        xb, mb, nf, cf, nb, cb = self.lists()
+        _, _, nf, cf, _, _ = self.lists()
         if cfg.divergence_solve:
             with self.timer("divergenceSolve"):
                 rep.divergence_iterations, rep.divergence_error, maxed = divergence_solve(self, dt, st.k_div)
                 rep.solver_maxed += maxed
         with self.timer("xsph"):
             st.v += dt * self.g
-            xsph(st.x, st.v, st.m, self.rho, xb, mb, nf, cf, nb, cb, self.h, self.scene.viscosity,
-                 self.scratch_v, self.drho)
+            xsph(st.x, st.v, self.mf, self.rho, self.gb, self.lam, nf, cf, self.h, self.scene.viscosity,
+                 self.scratch_v, self.drho, NO_DISPLACEMENT)  # (lam is not read without a displacement)
             st.v[:] = self.scratch_v
         with self.timer("densitySolve"):
             rep.density_iterations, maxed = self.density_solve(dt)
@@ -99,13 +106,10 @@ class DFSPH(Method):
     def density_solve(self, dt: float) -> tuple[int, bool]:
         """[BK17 Alg. 3]: k_i = alpha_i (rho*_i - rho0) / dt^2 until mean(rho* - rho0) <= eta rho0."""
         st, cfg = self.state, self.cfg
-        xb, mb, nf, cf, nb, cb = self.lists()
-        x, v, m, h, k, gb = st.x, st.v, st.m, self.h, self.k, self.gb
+        _, _, nf, cf, _, _ = self.lists()
+        x, v, m, h, k, gb = st.x, st.v, self.mf, self.h, self.k, self.gb  # gb, alpha: from prepare()
         eta = cfg.density_error_pct / 100.0
         k_total = st.k_dens
-        # gb from the divergence solve at these positions, unless it was switched off
-        if not cfg.divergence_solve:
-            wall_gradient(x, xb, mb, nb, cb, h, gb)
         density_residual(x, v, m, gb, nf, cf, h, self.rho, self.alpha, self.rho0, dt, self.err, k)
         if self.dt_prev is not None:
             warm = 0.5 * np.minimum(k_total * (self.dt_prev / dt) ** 2, 0.5)

@@ -21,6 +21,7 @@ class IPSPH(ProjectiveMethod):
     def __init__(self, *args):
         super().__init__(*args)
         self.state.zeros("k_div")  # total divergence stiffness of the last step (warm start)
+        self.state.zeros("pd_warm", (3,))  # the last step's final PF displacement d(Lam) (warm start)
 
     def step(self, dt: float) -> StepReport:
         self.report = rep = StepReport(dt=dt)
@@ -31,10 +32,10 @@ class IPSPH(ProjectiveMethod):
                                           cfg.ipsph_density_error_pct / 100.0, cfg.ipsph_warm_start)
             rep.solver_maxed += rep.pd_passes >= cfg.ipsph_max_passes and err > cfg.ipsph_density_error_pct / 100.0
         with self.timer("xsph"):
-            self.projected_velocities(dt, x_old)
+            self.projected_velocities(dt, x_old, st.pd_warm)
         if cfg.divergence_solve:
             with self.timer("divergenceSolve"):
-                rep.divergence_iterations, rep.divergence_error, maxed = divergence_solve(self, dt, st.k_div)
+                rep.divergence_iterations, rep.divergence_error, maxed = divergence_solve(self, dt, st.k_div, self.drho)
                 rep.solver_maxed += maxed
         st.pressure[:] = self.pf_pressure(dt) + st.k_div * self.rho * self.rho
         rep.density_error_mean, rep.density_error_max = self.density_errors()

@@ -14,7 +14,7 @@ import numpy as np
 
 from .base import Method, StepReport
 from .pf_passes import pf_global
-from .sph_passes import density_factor_lambda, mean, xsph
+from .sph_passes import NO_DISPLACEMENT, density_factor_lambda, mean, xsph
 
 
 def pd_solve(method: Method, dt: float, min_passes: int, max_passes: int, tol: float,
@@ -22,13 +22,14 @@ def pd_solve(method: Method, dt: float, min_passes: int, max_passes: int, tol: f
     """Local/global passes from x = s until the mean density error <= tol [WKB16 sec. 4; paper Alg. 2].
 
     Each pass: local step (rho, lam at x) -> stop test -> global step (closed form, Jacobi).
-    The final local step leaves rho, alpha, n_nbrs and err valid at the projected positions.
+    The final local step leaves rho, alpha, n_nbrs, err and gb valid at the projected positions.
     Accumulates the pressure multiplier in state.pd_lambda. Returns (passes, mean error).
 
-    warm_start > 0 (IPSPH only, a [choice] of ours): before the first pass, displace s by the
-    pressure displacement of `warm_start` times the previous step's multipliers, rescaled to
-    the new step (Lam ~ p dt^2), as DFSPH warm-starts its stiffness. The stop test is
-    unchanged, so the result meets the same tolerance in fewer passes.
+    warm_start > 0 (IPSPH only, a [choice] of ours): before the first pass, displace s by
+    `warm_start` times the previous step's final PF displacement d(Lam) (state.pd_warm, summed by
+    the previous step's XSPH pass at its projected positions), rescaled to the new step
+    (Lam ~ p dt^2), as DFSPH warm-starts its stiffness; Lam starts from the same scaled
+    multipliers. The stop test is unchanged, so the result meets the same tolerance in fewer passes.
     """
     st = method.state
     xb, mb, nf, cf, nb, cb = method.lists()
@@ -39,21 +40,19 @@ def pd_solve(method: Method, dt: float, min_passes: int, max_passes: int, tol: f
     x, x_new = st.x, method.scratch_x
     lam_sum = st.pd_lambda
     if warm_start > 0.0 and method.dt_prev is not None:
-        # the global step with a -> infinity is a pure displacement x + d(Lam'), and leaves Lam = Lam'
-        warm = warm_start * (dt / method.dt_prev) ** 2 * lam_sum
-        lam_sum[:] = 0.0
-        pf_global(x, s, st.m, xb, mb, nf, cf, nb, cb, n_s, h, rho0, warm, 1e300, x_new, lam_sum)
-        x, x_new = x_new, x
+        c = warm_start * (dt / method.dt_prev) ** 2
+        x += (c / rho0) * st.pd_warm         # pf_global's pure displacement (a -> infinity) by c Lam
+        lam_sum *= c
     else:
         lam_sum[:] = 0.0
     passes = 0
     while True:
-        density_factor_lambda(x, st.m, xb, mb, nf, cf, nb, cb, h, rho0,
-                              method.rho, method.alpha, method.lam, method.err, method.n_nbrs)
+        density_factor_lambda(x, method.mf, xb, mb, nf, cf, nb, cb, h, rho0,
+                              method.rho, method.alpha, method.lam, method.err, method.n_nbrs, method.gb)
         err = mean(method.err)
         if passes >= max_passes or (passes >= min_passes and err <= tol):
             break
-        pf_global(x, s, st.m, xb, mb, nf, cf, nb, cb, n_s, h, rho0, method.lam, a, x_new, lam_sum)
+        pf_global(x, s, method.mf, method.gb, nf, cf, n_s, h, rho0, method.lam, a, x_new, lam_sum)
         x, x_new = x_new, x
         passes += 1
     st.x = x
@@ -78,10 +77,10 @@ class ProjectiveMethod(Method):
         st = self.state
         perm = self.search.update(st.x)
         xb, mb, nf, cf, nb, cb = self.lists()
-        density_factor_lambda(np.ascontiguousarray(st.x[perm]), np.ascontiguousarray(st.m[perm]), xb, mb,
+        density_factor_lambda(np.ascontiguousarray(st.x[perm]), self.mf, xb, mb,
                               nf, cf, nb, cb, self.h, self.rho0, self.rho, self.alpha, self.lam, self.err,
-                              self.n_nbrs)
-        for a in (self.rho, self.alpha, self.lam, self.err, self.n_nbrs):
+                              self.n_nbrs, self.gb)
+        for a in (self.rho, self.alpha, self.lam, self.err, self.n_nbrs, self.gb):
             a[perm] = a.copy()
 
     def inertial_target(self, dt: float) -> np.ndarray:
@@ -92,16 +91,18 @@ class ProjectiveMethod(Method):
         (x_old,) = self.neighbour_search(x_old)
         return x_old
 
-    def projected_velocities(self, dt: float, x_old: np.ndarray) -> None:
+    def projected_velocities(self, dt: float, x_old: np.ndarray, disp: np.ndarray = NO_DISPLACEMENT) -> None:
         """v = (x - x^n) / dt from the projected positions, then XSPH.
 
-        Leaves D rho/Dt of the unfiltered velocities in self.drho (PF's divergence error).
+        Leaves D rho/Dt of the unfiltered velocities in self.drho (PF's divergence error, IPSPH's
+        divergence warm-start mask) and, if `disp` has a row per particle, the step's final PF
+        displacement d(Lam) in it (IPSPH's next warm start).
         """
         st = self.state
         st.v[:] = (st.x - x_old) / dt
-        xb, mb, nf, cf, nb, cb = self.lists()
-        xsph(st.x, st.v, st.m, self.rho, xb, mb, nf, cf, nb, cb, self.h, self.scene.viscosity,
-             self.scratch_v, self.drho)
+        _, _, nf, cf, _, _ = self.lists()
+        xsph(st.x, st.v, self.mf, self.rho, self.gb, st.pd_lambda, nf, cf, self.h, self.scene.viscosity,
+             self.scratch_v, self.drho, disp)
         st.v[:] = self.scratch_v
 
     def pf_pressure(self, dt: float) -> np.ndarray:

@@ -1,7 +1,9 @@
 """Numba passes shared by the methods (method.md sections 1-2).
 
 Every pass is a gather: `prange` over fluid particles i, reading neighbours j (fluid) and b
-(boundary, effective mass m_b = rho0 Psi_b), writing index i only. Arguments follow one order:
+(boundary, effective mass m_b = rho0 Psi_b), writing index i only. All fluid particles have one
+mass `mf` (one rest density, one radius per scene: sampling.py), so it is a scalar, factored out of
+the fluid sums; only the walls' masses are gathered. Arguments follow one order:
 positions and per-particle inputs, the neighbour lists (nf, cf: fluid indices and counts;
 nb, cb: boundary), scalars, outputs last. Notation: x_ij = x_i - x_j, r_ij = |x_ij|,
 grad W_ij = g(r_ij) x_ij.
@@ -22,10 +24,12 @@ from ..kernels import grad_w_factor, w
 FAST = {"contract", "arcp", "reassoc"}  # no nnan/ninf: NaN checks keep working
 
 # buffer rows (per thread): x_ij components, then per-neighbour scalars
-DX, DY, DZ, C0, C1, C2, C3, C4 = 0, 1, 2, 3, 4, 5, 6, 7
+DX, DY, DZ, C0, C1, C2, C3, C4, C5 = 0, 1, 2, 3, 4, 5, 6, 7, 8
 
 
 CHUNKS = 64  # blocks of particles per pass, each with its own scratch buffer
+
+NO_DISPLACEMENT = np.zeros((0, 3))  # xsph(..., disp=NO_DISPLACEMENT): skip the PF displacement
 
 
 @njit(inline="always")
@@ -89,14 +93,16 @@ def _weighted_gradient(n, buf, row, h):
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)
-def density_factor_lambda(x, m, xb, mb, nf, cf, nb, cb, h, rho0, rho, alpha, lam, err, n_nbrs):
-    """Density, DFSPH factor, PF multiplier and density error at the current positions.
+def density_factor_lambda(x, mf, xb, mb, nf, cf, nb, cb, h, rho0, rho, alpha, lam, err, n_nbrs, gb):
+    """Density, DFSPH factor, PF multiplier, density error and wall gradient at the current positions.
 
-        rho_i   = m_i W(0) + sum_j m_j W_ij + sum_b m_b W_ib
-        g_i     = sum_j m_j grad W_ij + sum_b m_b grad W_ib
-        alpha_i = 1 / max(|g_i|^2 + sum_j |m_j grad W_ij|^2, 1e-5)          [BK17 eq. 9]
+        rho_i   = mf W(0) + sum_j mf W_ij + sum_b m_b W_ib
+        gb_i    = sum_b m_b grad W_ib            (the walls' part: fixed while positions are, so the
+                                                  pressure solves and XSPH reuse it)
+        g_i     = sum_j mf grad W_ij + gb_i
+        alpha_i = 1 / max(|g_i|^2 + sum_j |mf grad W_ij|^2, 1e-5)           [BK17 eq. 9]
         C_i     = max(rho_i / rho0 - 1, 0)                                  [WKB16, unilateral]
-        lam_i   = -C_i / (sum_k |G_ik|^2 + 1e-6),  sum_k |G_ik|^2 = (|g_i|^2 + sum_j |m_j grad W_ij|^2) / rho0^2
+        lam_i   = -C_i / (sum_k |G_ik|^2 + 1e-6),  sum_k |G_ik|^2 = (|g_i|^2 + sum_j |mf grad W_ij|^2) / rho0^2
         err_i   = C_i;  n_nbrs_i = |{j : r_ij < H}| + |{b : r_ib < H}|
     """
     w0 = w(0.0, h)
@@ -107,28 +113,36 @@ def density_factor_lambda(x, m, xb, mb, nf, cf, nb, cb, h, rho0, rho, alpha, lam
         for i in range(lo, hi):
             n_f, n_b = _gather_x(i, x, xb, nf, cf, nb, cb, buf)
             for k in range(n_f):
-                buf[C0, k] = m[nf[i, k]]
-                buf[C1, k] = 1.0  # fluid neighbours enter sum_j |m_j grad W_ij|^2
+                buf[C0, k] = mf
+                buf[C1, k] = 1.0  # fluid neighbours enter sum_j |m_j grad W_ij|^2, walls enter gb
             for k in range(n_b):
                 buf[C0, n_f + k] = mb[nb[i, k]]
                 buf[C1, n_f + k] = 0.0
-            rho_i = m[i] * w0
+            rho_i = mf * w0
             g0 = 0.0
             g1 = 0.0
             g2 = 0.0
+            b0 = 0.0
+            b1 = 0.0
+            b2 = 0.0
             s2 = 0.0
             nn = 0.0
-            for k in range(n_f + n_b):
+            for k in range(n_f + n_b):  # one loop over fluid and walls (two loops measured slower)
                 d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
                 r2 = d0 * d0 + d1 * d1 + d2 * d2
                 r = np.sqrt(r2)
                 mk = buf[C0, k]
+                fluid = buf[C1, k]
                 rho_i += mk * w(r, h)
                 f = mk * grad_w_factor(r, h)
                 g0 += f * d0
                 g1 += f * d1
                 g2 += f * d2
-                s2 += buf[C1, k] * f * f * r2
+                fb = (1.0 - fluid) * f
+                b0 += fb * d0
+                b1 += fb * d1
+                b2 += fb * d2
+                s2 += fluid * f * f * r2
                 nn += 1.0 if r < h else 0.0
             sum_sq = g0 * g0 + g1 * g1 + g2 * g2 + s2
             rho[i] = rho_i
@@ -137,72 +151,37 @@ def density_factor_lambda(x, m, xb, mb, nf, cf, nb, cb, h, rho0, rho, alpha, lam
             err[i] = c
             lam[i] = -c / (sum_sq / (rho0 * rho0) + 1e-6)
             n_nbrs[i] = int(nn)
+            gb[i, 0] = b0
+            gb[i, 1] = b1
+            gb[i, 2] = b2
 
 
 @njit(inline="always")
-def _gather_rate_f(i, v, m, nf, n_f, buf):
-    """buf[C0] = m_j, buf[C1..C3] = v_i - v_j over the fluid neighbours: what D rho_i/Dt needs."""
+def _gather_rate_f(i, v, nf, n_f, buf):
+    """buf[C1..C3] = v_i - v_j over the fluid neighbours: what D rho_i/Dt needs."""
     vi0, vi1, vi2 = v[i, 0], v[i, 1], v[i, 2]
     for k in range(n_f):
         j = nf[i, k]
-        buf[C0, k] = m[j]
         buf[C1, k] = vi0 - v[j, 0]
         buf[C2, k] = vi1 - v[j, 1]
         buf[C3, k] = vi2 - v[j, 2]
 
 
-@njit(inline="always")
-def _gather_rate(i, v, m, mb, nf, nb, n_f, n_b, buf):
-    """buf[C0] = m_j (m_b), buf[C1..C3] = v_i - v_j (v_i for walls): what D rho_i/Dt needs."""
-    _gather_rate_f(i, v, m, nf, n_f, buf)
-    vi0, vi1, vi2 = v[i, 0], v[i, 1], v[i, 2]
-    for k in range(n_b):
-        buf[C0, n_f + k] = mb[nb[i, k]]
-        buf[C1, n_f + k] = vi0
-        buf[C2, n_f + k] = vi1
-        buf[C3, n_f + k] = vi2
-
-
-@njit(parallel=True, fastmath=FAST, cache=True)
-def wall_gradient(x, xb, mb, nb, cb, h, gb):
-    """gb_i = sum_b m_b grad W_ib: what the walls add to every pressure-solve pass.
-
-    During the divergence and density solves the positions are fixed, so the wall terms of
-    D rho_i/Dt (v_i . gb_i) and of the velocity update (k_i gb_i) need the wall neighbours once
-    per solve, not once per pass.
-    """
-    for i in prange(x.shape[0]):
-        xi0, xi1, xi2 = x[i, 0], x[i, 1], x[i, 2]
-        a0 = 0.0
-        a1 = 0.0
-        a2 = 0.0
-        for k in range(cb[i]):
-            b = nb[i, k]
-            d0, d1, d2 = xi0 - xb[b, 0], xi1 - xb[b, 1], xi2 - xb[b, 2]
-            f = mb[b] * grad_w_factor(np.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
-            a0 += f * d0
-            a1 += f * d1
-            a2 += f * d2
-        gb[i, 0] = a0
-        gb[i, 1] = a1
-        gb[i, 2] = a2
-
-
 @njit(inline="always", fastmath=FAST)
-def _density_rate(i, x, v, m, gb, nf, cf, h, buf):
-    """D rho_i / Dt = sum_j m_j (v_i - v_j) . grad W_ij + v_i . gb_i   [BK17 eq. 4; gb: wall_gradient]."""
+def _density_rate(i, x, v, mf, gb, nf, cf, h, buf):
+    """D rho_i / Dt = sum_j mf (v_i - v_j) . grad W_ij + v_i . gb_i   [BK17 eq. 4; gb: density_factor_lambda]."""
     n_f = _gather_xf(i, x, nf, cf, buf)
-    _gather_rate_f(i, v, m, nf, n_f, buf)
-    drho = v[i, 0] * gb[i, 0] + v[i, 1] * gb[i, 1] + v[i, 2] * gb[i, 2]
+    _gather_rate_f(i, v, nf, n_f, buf)
+    rate = 0.0
     for k in range(n_f):
         d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
-        f = buf[C0, k] * grad_w_factor(np.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
-        drho += f * (buf[C1, k] * d0 + buf[C2, k] * d1 + buf[C3, k] * d2)
-    return drho
+        f = grad_w_factor(np.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
+        rate += f * (buf[C1, k] * d0 + buf[C2, k] * d1 + buf[C3, k] * d2)
+    return mf * rate + v[i, 0] * gb[i, 0] + v[i, 1] * gb[i, 1] + v[i, 2] * gb[i, 2]
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)
-def divergence_residual(x, v, m, gb, nf, cf, h, alpha, n_nbrs, dt, drho, k):
+def divergence_residual(x, v, mf, gb, nf, cf, h, alpha, n_nbrs, dt, drho, k):
     """Divergence-solve residual and stiffness [BK17 Alg. 2]:
     drho_i = max(D rho_i/Dt, 0), zero for particles with < 20 neighbours; k_i = alpha_i drho_i / dt."""
     bufs = _fluid_buffers(7, nf)
@@ -212,13 +191,13 @@ def divergence_residual(x, v, m, gb, nf, cf, h, alpha, n_nbrs, dt, drho, k):
         for i in range(lo, hi):
             d = 0.0
             if n_nbrs[i] >= 20:
-                d = max(_density_rate(i, x, v, m, gb, nf, cf, h, buf), 0.0)
+                d = max(_density_rate(i, x, v, mf, gb, nf, cf, h, buf), 0.0)
             drho[i] = d
             k[i] = alpha[i] * d / dt
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)
-def density_residual(x, v, m, gb, nf, cf, h, rho, alpha, rho0, dt, rho_err, k):
+def density_residual(x, v, mf, gb, nf, cf, h, rho, alpha, rho0, dt, rho_err, k):
     """Density-solve residual and stiffness [BK17 Alg. 3]:
     rho*_i = max(rho_i + dt D rho_i/Dt, rho0);  rho_err_i = rho*_i - rho0;  k_i = alpha_i rho_err_i / dt^2."""
     bufs = _fluid_buffers(7, nf)
@@ -226,15 +205,15 @@ def density_residual(x, v, m, gb, nf, cf, h, rho, alpha, rho0, dt, rho_err, k):
         buf = bufs[c]
         lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
         for i in range(lo, hi):
-            rate = _density_rate(i, x, v, m, gb, nf, cf, h, buf)
+            rate = _density_rate(i, x, v, mf, gb, nf, cf, h, buf)
             e = max(rho[i] + dt * rate, rho0) - rho0
             rho_err[i] = e
             k[i] = alpha[i] * e / (dt * dt)
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)
-def apply_stiffness(x, m, gb, nf, cf, h, k, dt, v, k_total):
-    """v_i -= dt [sum_j m_j (k_i + k_j) grad W_ij + k_i gb_i];  k_total_i += k_i  (gb: wall_gradient).
+def apply_stiffness(x, mf, gb, nf, cf, h, k, dt, v, k_total):
+    """v_i -= dt [sum_j mf (k_i + k_j) grad W_ij + k_i gb_i];  k_total_i += k_i  (gb: density_factor_lambda).
 
     In place: iteration i reads k of its neighbours and writes v_i, k_total_i only.
     """
@@ -247,39 +226,47 @@ def apply_stiffness(x, m, gb, nf, cf, h, k, dt, v, k_total):
             ki = k[i]
             for n in range(n_f):
                 j = nf[i, n]
-                buf[C0, n] = m[j] * (ki + k[j])
+                buf[C0, n] = ki + k[j]
             a0, a1, a2 = _weighted_gradient(n_f, buf, C0, h)
-            v[i, 0] -= dt * (a0 + ki * gb[i, 0])
-            v[i, 1] -= dt * (a1 + ki * gb[i, 1])
-            v[i, 2] -= dt * (a2 + ki * gb[i, 2])
+            v[i, 0] -= dt * (mf * a0 + ki * gb[i, 0])
+            v[i, 1] -= dt * (mf * a1 + ki * gb[i, 1])
+            v[i, 2] -= dt * (mf * a2 + ki * gb[i, 2])
             k_total[i] += ki
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)
-def xsph(x, v, m, rho, xb, mb, nf, cf, nb, cb, h, zeta, v_out, drho):
-    """XSPH velocity filter [SB12]: v_i <- v_i - zeta sum_j (m_j / rho_j) (v_i - v_j) W_ij.
+def xsph(x, v, mf, rho, gb, lam, nf, cf, h, zeta, v_out, drho, disp):
+    """XSPH velocity filter [SB12]: v_i <- v_i - zeta sum_j (mf / rho_j) (v_i - v_j) W_ij.
 
-    Also returns D rho_i/Dt of the input velocities (a free by-product used as PF's
-    divergence error).
+    Walls take no part in the filter. By-products of the same neighbour loop:
+        drho_i = D rho_i/Dt of the input velocities (walls through gb_i, see
+                 density_factor_lambda): PF's divergence error, IPSPH's divergence warm-start mask;
+        disp_i = sum_j mf (lam_i + lam_j) grad W_ij + lam_i gb_i, only if disp has n rows
+                 (else it is skipped): rho0 times the PF displacement of the multipliers lam
+                 (pf_global's d_k), IPSPH's next projection warm start.
     """
-    bufs = _buffers(8, nf, nb)
+    with_disp = disp.shape[0] == x.shape[0]
+    bufs = _fluid_buffers(9, nf)
     for c in prange(bufs.shape[0]):
         buf = bufs[c]
         lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
         for i in range(lo, hi):
-            n_f, n_b = _gather_x(i, x, xb, nf, cf, nb, cb, buf)
-            _gather_rate(i, v, m, mb, nf, nb, n_f, n_b, buf)
+            n_f = _gather_xf(i, x, nf, cf, buf)
+            _gather_rate_f(i, v, nf, n_f, buf)
+            li = lam[i] if with_disp else 0.0
             for k in range(n_f):
                 j = nf[i, k]
-                buf[C4, k] = m[j] / rho[j]  # XSPH weight (walls take no part in the filter)
-            for k in range(n_b):
-                buf[C4, n_f + k] = 0.0
+                buf[C4, k] = 1.0 / rho[j]
+                buf[C5, k] = li + lam[j] if with_disp else 0.0
             vi0, vi1, vi2 = v[i, 0], v[i, 1], v[i, 2]
             a0 = 0.0
             a1 = 0.0
             a2 = 0.0
+            p0 = 0.0
+            p1 = 0.0
+            p2 = 0.0
             dr = 0.0
-            for k in range(n_f + n_b):
+            for k in range(n_f):
                 d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
                 r = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
                 u0, u1, u2 = buf[C1, k], buf[C2, k], buf[C3, k]
@@ -287,11 +274,21 @@ def xsph(x, v, m, rho, xb, mb, nf, cf, nb, cb, h, zeta, v_out, drho):
                 a0 += wij * u0
                 a1 += wij * u1
                 a2 += wij * u2
-                dr += buf[C0, k] * grad_w_factor(r, h) * (u0 * d0 + u1 * d1 + u2 * d2)
-            drho[i] = dr
-            v_out[i, 0] = vi0 - zeta * a0
-            v_out[i, 1] = vi1 - zeta * a1
-            v_out[i, 2] = vi2 - zeta * a2
+                g = grad_w_factor(r, h)
+                dr += g * (u0 * d0 + u1 * d1 + u2 * d2)
+                gl = buf[C5, k] * g
+                p0 += gl * d0
+                p1 += gl * d1
+                p2 += gl * d2
+            drho[i] = mf * dr + vi0 * gb[i, 0] + vi1 * gb[i, 1] + vi2 * gb[i, 2]
+            zm = zeta * mf
+            v_out[i, 0] = vi0 - zm * a0
+            v_out[i, 1] = vi1 - zm * a1
+            v_out[i, 2] = vi2 - zm * a2
+            if with_disp:
+                disp[i, 0] = mf * p0 + li * gb[i, 0]
+                disp[i, 1] = mf * p1 + li * gb[i, 1]
+                disp[i, 2] = mf * p2 + li * gb[i, 2]
 
 
 @njit(cache=True)
