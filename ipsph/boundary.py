@@ -14,7 +14,7 @@ import numpy as np
 from numba import njit, prange
 
 from .kernels import w
-from .neighbours import CELLS_PER_SUPPORT, Grid, cell_ids, counting_sort, gather_neighbours
+from .neighbours import Grid, cell_ids, counting_sort, gather_neighbours
 
 
 @njit(parallel=True, cache=True)
@@ -51,9 +51,9 @@ class Boundary:
         psi = np.zeros(n)
         if n == 0:
             return psi
-        grid = Grid(self.x.min(axis=0), self.x.max(axis=0), self.h / CELLS_PER_SUPPORT)
+        grid = Grid.for_support(self.x.min(axis=0), self.x.max(axis=0), self.h)
         cells = np.empty(n, dtype=np.int64)
-        cell_ids(self.x, grid.origin, 1.0 / grid.cell, grid.dims, cells)
+        cell_ids(self.x, grid.origin, grid.inv_cell, grid.dims, cells)
         order = np.empty(n, dtype=np.int64)
         start = np.empty(grid.n_cells + 1, dtype=np.int64)
         counting_sort(cells, grid.n_cells, order, start)
@@ -62,7 +62,7 @@ class Boundary:
         while True:
             nbr = np.zeros((n, k), dtype=np.int32)
             cnt = np.zeros(n, dtype=np.int32)
-            most = gather_neighbours(xs, xs, start, grid.origin, 1.0 / grid.cell, grid.dims, self.h, True, nbr, cnt)
+            most = gather_neighbours(xs, xs, start, grid.origin, grid.inv_cell, grid.dims, self.h, True, nbr, cnt)
             if most <= k:
                 break
             k = int(most + 16)

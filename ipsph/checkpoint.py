@@ -79,7 +79,7 @@ def save(path: Path, sim, *, frames: int, last_frame_time: float | None, solver_
     data = {f"state.{k}": v for k, v in sim.state.arrays().items()}
     data.update({"boundary.x": b.x, "boundary.psi": b.psi, "boundary.m": b.m})
     if g is not None:
-        data.update({"grid.origin": g.origin, "grid.cell": np.float64(g.cell), "grid.dims": g.dims})
+        data.update({"grid.origin": g.origin, "grid.cell": g.cell, "grid.dims": g.dims})
     scalars = {"format": FORMAT, "time": sim.time, "steps": sim.steps, "dt_next": sim.dt_next,
                "dt_prev": sim.method.dt_prev, "clamped_steps": int(sim.clamped_steps),
                "next_clamped": bool(sim._clamped),
@@ -168,12 +168,12 @@ def restore(scene: Scene, ck: Checkpoint):
     if "grid.origin" in a:
         g = Grid.__new__(Grid)
         g.origin = np.ascontiguousarray(a["grid.origin"], dtype=np.float64)
-        g.cell = float(a["grid.cell"])
+        g.cell = np.ascontiguousarray(a["grid.cell"], dtype=np.float64)
         g.dims = np.ascontiguousarray(a["grid.dims"], dtype=np.int64)
         search.grid = g
         # the boundary is already sorted into this grid: the stable sort is the identity
         cells = np.empty(b.n, dtype=np.int64)
-        cell_ids(b.x, g.origin, 1.0 / g.cell, g.dims, cells)
+        cell_ids(b.x, g.origin, g.inv_cell, g.dims, cells)
         order = np.empty(b.n, dtype=np.int64)
         search.boundary_start = np.empty(g.n_cells + 1, dtype=np.int64)
         counting_sort(cells, g.n_cells, order, search.boundary_start)

@@ -80,7 +80,7 @@ class Method:
         with self.timer("neighbourSearch"):
             perm = self.search.update(self.state.x)
             self.state.permute(perm)
-            return tuple(np.ascontiguousarray(a[perm]) for a in follow)
+            return tuple(np.take(a, perm, axis=0) for a in follow)
 
     def lists(self):
         """(x_b, m_b, nf, cf, nb, cb): everything a pass needs to see neighbours and walls."""

@@ -35,7 +35,6 @@ def pd_solve(method: Method, dt: float, min_passes: int, max_passes: int, tol: f
     xb, mb, nf, cf, nb, cb = method.lists()
     h, rho0 = method.h, method.rho0
     s = st.x.copy()                          # the inertial target
-    n_s = (cf + 1).astype(np.float64)        # n_k = |N(k)| + 1 at s
     a = dt * dt * method.cfg.pf_stiffness
     x, x_new = st.x, method.scratch_x
     lam_sum = st.pd_lambda
@@ -52,7 +51,7 @@ def pd_solve(method: Method, dt: float, min_passes: int, max_passes: int, tol: f
         err = mean(method.err)
         if passes >= max_passes or (passes >= min_passes and err <= tol):
             break
-        pf_global(x, s, method.mf, method.gb, nf, cf, n_s, h, rho0, method.lam, a, x_new, lam_sum)
+        pf_global(x, s, method.mf, method.gb, nf, cf, h, rho0, method.lam, a, x_new, lam_sum)
         x, x_new = x_new, x
         passes += 1
     st.x = x

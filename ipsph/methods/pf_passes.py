@@ -10,7 +10,7 @@ from .sph_passes import C0, FAST, _chunk, _fluid_buffers, _gather_xf, _weighted_
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)
-def pf_global(x, s, mf, gb, nf, cf, n_s, h, rho0, lam, a, x_out, lam_sum):
+def pf_global(x, s, mf, gb, nf, cf, h, rho0, lam, a, x_out, lam_sum):
     """One global step of PF with the constraint gradients of the local step:
 
         d_k   = sum_{c in {k} u N(k)} lam_c G_ck
@@ -31,7 +31,7 @@ def pf_global(x, s, mf, gb, nf, cf, n_s, h, rho0, lam, a, x_out, lam_sum):
             for n in range(n_f):
                 buf[C0, n] = lk + lam[nf[k, n]]
             d0, d1, d2 = _weighted_gradient(n_f, buf, C0, h)
-            an = a * n_s[k]
+            an = a * (cf[k] + 1)  # n_k: the lists were built at s
             inv = 1.0 / (mf + an)
             x_out[k, 0] = (mf * s[k, 0] + an * (x[k, 0] + (mf * d0 + lk * gb[k, 0]) / rho0)) * inv
             x_out[k, 1] = (mf * s[k, 1] + an * (x[k, 1] + (mf * d1 + lk * gb[k, 1]) / rho0)) * inv
