@@ -62,7 +62,8 @@ class Boundary:
         while True:
             nbr = np.zeros((n, k), dtype=np.int32)
             cnt = np.zeros(n, dtype=np.int32)
-            most = gather_neighbours(xs, xs, start, grid.origin, grid.inv_cell, grid.dims, self.h, True, nbr, cnt)
+            most = gather_neighbours(xs, xs, start, grid.origin, grid.inv_cell, grid.dims, self.h, True, False,
+                                     nbr, cnt)
             if most <= k:
                 break
             k = int(most + 16)
