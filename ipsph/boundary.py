@@ -55,8 +55,7 @@ class Boundary:
         cells = np.empty(n, dtype=np.int64)
         cell_ids(self.x, grid.origin, grid.inv_cell, grid.dims, cells)
         order = np.empty(n, dtype=np.int64)
-        start = np.empty(grid.n_cells + 1, dtype=np.int64)
-        counting_sort(cells, grid.n_cells, order, start)
+        start = counting_sort(cells, grid.n_cells, order)
         xs = np.ascontiguousarray(self.x[order])
         k = 64
         while True:
