@@ -119,6 +119,16 @@ def test_scene_table_prints_loaded_run_and_ratios():
     assert "|---|" in md
 
 
+def test_ratios_add_same_round_pairs_and_fastest_runs():
+    n = report.normalise
+    rows = [n(_ours(10, w), "ours", "ipsph", "S", k) for k, w in enumerate((3.0, 4.0, 5.0))]
+    rows += [n(_peer(8, w), "peer", "dfsph", "S", k) for k, w in enumerate((2.0, 5.0, 4.0))]
+    (line,) = report.ratio_lines(report.summarise(rows, 0.5), "S")
+    # medians 4.0 / 4.0; rounds 3/2, 4/5, 5/4; fastest 3.0 / 2.0
+    assert line.startswith("IPSPH / SPH-DFSPH: wall per simulated second 1.00x")
+    assert line.endswith("; same round 1.50 0.80 1.25, fastest/fastest 1.50x")
+
+
 def test_ratios_fall_back_to_loaded_runs_and_say_so():
     n = report.normalise
     rows = [n(_ours(10, 3.0, others=1.0), "ours", "ipsph", "S"), n(_peer(8, 2.0, others=1.0), "peer", "dfsph", "S")]

@@ -205,8 +205,24 @@ def ratio_lines(groups, scene: str) -> list[str]:
         a, b = _f(ours.get("wall_per_sim")), _f(p.get("wall_per_sim"))
         c, d = _f(ours.get("ms_step")), _f(p.get("ms_step"))
         if b > 0 and d > 0 and not math.isnan(a):
-            lines.append(f"IPSPH / {peer}: wall per simulated second {a / b:.2f}x, ms per step {c / d:.2f}x{note}")
+            lines.append(f"IPSPH / {peer}: wall per simulated second {a / b:.2f}x, ms per step {c / d:.2f}x{note}"
+                         + _round_ratios(here["IPSPH"]["quiet"], here[peer]["quiet"]))
     return lines
+
+
+def _round_ratios(ours: list[dict], peer: list[dict]) -> str:
+    """'; same round 0.88 1.11 1.21, fastest/fastest 1.17x' (wall per simulated second), from quiet runs.
+
+    Runs of one repeat ran minutes apart at most, so their ratio sees less of the machine's drift
+    than the ratio of medians; the fastest runs are the least disturbed ones.
+    """
+    a = {r["repeat"]: _f(r.get("wall_per_sim")) for r in ours}
+    b = {r["repeat"]: _f(r.get("wall_per_sim")) for r in peer}
+    pairs = [a[k] / b[k] for k in sorted(a) if k in b and b[k] > 0 and not math.isnan(a[k])]
+    if len(pairs) < 2:
+        return ""
+    fastest = min(a.values()) / min(b.values())
+    return f"; same round {' '.join(f'{x:.2f}' for x in pairs)}, fastest/fastest {fastest:.2f}x"
 
 
 SCALING_HEADERS = ["method", "fluid", "boundary", "timed steps", "ms/step (median)", "us / fluid particle-step",
