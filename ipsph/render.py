@@ -416,15 +416,15 @@ class FrameRenderer:
     def render(self, points: np.ndarray, velocities: np.ndarray | None, out_png, *,
                time: float | None = None) -> Path:
         """Render one frame to `out_png` (parent folders are created); return its path."""
+        return save_png(self.image(points, velocities, time=time), out_png)
+
+    def image(self, points: np.ndarray, velocities: np.ndarray | None, *, time: float | None = None) -> np.ndarray:
+        """One frame as a new (h, w, 3) uint8 array (rows top down), not yet written."""
         pts = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
         speed = (np.linalg.norm(velocities, axis=1) if velocities is not None and len(velocities)
                  else np.zeros(len(pts)))
         label = "" if time is None else f"t = {time:.3f} s"
-        img = self._splat_frame(pts, speed, label) if self.engine == "splat" else self._vtk_frame(pts, speed, label)
-        out_png = Path(out_png)
-        out_png.parent.mkdir(parents=True, exist_ok=True)
-        _save_png(img, out_png)
-        return out_png
+        return self._splat_frame(pts, speed, label) if self.engine == "splat" else self._vtk_frame(pts, speed, label)
 
     def _vtk_frame(self, pts: np.ndarray, speed: np.ndarray, label: str) -> np.ndarray:
         """The whole frame through VTK (sprites by vtkPointGaussianMapper): the reference the splat
@@ -617,11 +617,14 @@ def _draw_text(img: np.ndarray, text: str, prop, position: tuple[int, int]) -> N
     img[ys, xs] = np.clip(patch[..., :3] * a + dst * (1.0 - a) + 0.5, 0, 255).astype(np.uint8)
 
 
-def _save_png(img: np.ndarray, path: Path) -> None:
+def save_png(img: np.ndarray, path) -> Path:
     """PNG through `ipsph.splat.encode_png` (Up filter, zlib level 1: ~2.5x faster than Pillow's
-    fastest level here), renamed into place so a viewer never sees half a file."""
+    fastest level here), renamed into place so a viewer never sees half a file; parent folders
+    are created. Releases the GIL for most of its time (the filter is nogil, zlib too)."""
     from .splat import encode_png
 
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
     data = encode_png(np.ascontiguousarray(np.asarray(img)[..., :3]))
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     try:
@@ -630,6 +633,7 @@ def _save_png(img: np.ndarray, path: Path) -> None:
     finally:
         if tmp.exists():
             tmp.unlink()
+    return path
 
 
 def read_surface(path):

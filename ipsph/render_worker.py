@@ -14,6 +14,7 @@ import os
 import queue as queue_mod
 import signal
 import time as _time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -39,7 +40,7 @@ def _worker(jobs, results):
     from vtkmodules.vtkCommonCore import vtkLogger, vtkObject
     vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_OFF)
     vtkObject.GlobalWarningDisplayOff()
-    from .render import FrameRenderer, read_surface
+    from .render import FrameRenderer, read_surface, save_png
     from .splat import warm_up
     warm_up()  # load the compiled kernels while the solver is still setting up
     try:
@@ -48,16 +49,29 @@ def _worker(jobs, results):
             return
         config, bounds, radius, speed_range, surface_file, title = setup
         surface = read_surface(surface_file) if surface_file is not None else None
-        with FrameRenderer(config, bounds, radius, speed_range, surface, title=title) as renderer:
+        def write(img, png):
+            save_png(img, png)
+            results.put(("ok", str(png)))
+
+        # A writer thread encodes frame k while frame k+1 is drawn: both mostly release the GIL,
+        # so the last frames, rendered after the solver has finished, use both cores (default
+        # scene: about half the frames are still queued then).
+        with FrameRenderer(config, bounds, radius, speed_range, surface, title=title) as renderer, \
+                ThreadPoolExecutor(max_workers=1, thread_name_prefix="ipsph-png") as writer:
             renderer.prepare()  # the first GL use: a missing GL stack crashes here, before any frame
             results.put(("ready", ""))
+            encoding = None
             while True:
                 job = jobs.get()
                 if job is None:
                     break
                 points, velocities, png, time = job
-                renderer.render(points, velocities, png, time=time)
-                results.put(("ok", str(png)))
+                img = renderer.image(points, velocities, time=time)
+                if encoding is not None:
+                    encoding.result()  # one frame in the writer at a time; re-raises its error
+                encoding = writer.submit(write, img, png)
+            if encoding is not None:
+                encoding.result()
     except Exception as exc:  # reported by the parent as one warning line
         results.put(("error", f"{type(exc).__name__}: {' '.join(str(exc).split())}"))
 

@@ -42,7 +42,7 @@ def _block(n: int):
 def render_cost(n: int, frames: int = 3) -> dict:
     """Median seconds per frame at ~n particles: splat engine (draw, PNG) and the all-VTK engine."""
     from ..model import RenderConfig
-    from ..render import FrameRenderer, _save_png, gl_available
+    from ..render import FrameRenderer, gl_available, save_png
     ok, why = gl_available()
     if not ok:
         return {"particles": n, "error": why}
@@ -59,7 +59,7 @@ def render_cost(n: int, frames: int = 3) -> dict:
                     t0 = time.perf_counter()
                     img = frame(pts, speed, f"t = {k:.3f} s")
                     t1 = time.perf_counter()
-                    _save_png(img, Path(tmp) / f"f{k}.png")
+                    save_png(img, Path(tmp) / f"f{k}.png")
                     draw.append(t1 - t0)
                     png.append(time.perf_counter() - t1)
             row[engine] = {"seconds_per_frame": statistics.median(a + b for a, b in zip(draw, png)),
