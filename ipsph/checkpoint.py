@@ -175,7 +175,7 @@ def restore(scene: Scene, ck: Checkpoint):
         cells = np.empty(b.n, dtype=np.int64)
         cell_ids(b.x, g.origin, g.inv_cell, g.dims, cells)
         order = np.empty(b.n, dtype=np.int64)
-        search.boundary_start = counting_sort(cells, g.n_cells, order)
+        search.use_boundary_sort(counting_sort(cells, g.n_cells, order))
         if not np.array_equal(order, np.arange(b.n)):
             raise OutputError(f"checkpoint {ck.path} is inconsistent (boundary not sorted into its grid); "
                               f"start afresh with --overwrite")

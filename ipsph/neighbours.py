@@ -119,7 +119,7 @@ def counting_sort(cells, n_cells: int, order) -> np.ndarray:
 
 
 @njit(parallel=True, cache=True)
-def gather_neighbours(xq, xs, cell_start, origin, inv_cell, dims, radius, same_set, upper, idx, cnt):
+def gather_neighbours(xq, xs, cell_start, origin, inv_cell, dims, radius, same_set, upper, near, idx, cnt):
     """For each query point i, the indices j of points xs with |xq_i - xs_j| < radius.
 
     `xs` must be sorted by cell with `cell_start` its CSR offsets. Rows of cells (fixed y, z)
@@ -127,8 +127,10 @@ def gather_neighbours(xq, xs, cell_start, origin, inv_cell, dims, radius, same_s
     x-extent of the sphere's chord, so fewer candidates fall outside the sphere.
     With `same_set`, i itself is skipped (xq is xs). With `upper` too, only j > i are gathered
     (the rows after i's row, and i's own row after i: half the rows and candidates); see
-    `append_lower`. Writes the first K = idx.shape[1] indices and the true count; returns the
-    largest count so the caller can detect an overflow.
+    `append_lower`. `near` (one flag per cell, or empty for none) marks the cells from which a
+    point of xs is within the row walk's reach: a query point in an unmarked cell has no
+    neighbours and skips the walk (`near_cells`). Writes the first K = idx.shape[1] indices and
+    the true count; returns the largest count so the caller can detect an overflow.
     """
     nx, ny, nz = dims[0], dims[1], dims[2]
     k_max = idx.shape[1]
@@ -143,6 +145,11 @@ def gather_neighbours(xq, xs, cell_start, origin, inv_cell, dims, radius, same_s
         cy = min(max(int((xi1 - origin[1]) * inv_cell[1]), 0), ny - 1)
         cz = min(max(int((xi2 - origin[2]) * inv_cell[2]), 0), nz - 1)
         n = 0
+        if near.shape[0] > 0:
+            cx = min(max(int((xi0 - origin[0]) * inv_cell[0]), 0), nx - 1)
+            if not near[(cz * ny + cy) * nx + cx]:
+                cnt[i] = 0
+                continue
         row_i = idx[i]
         for z in range(cz if upper else max(cz - reach_z, 0), min(cz + reach_z, nz - 1) + 1):
             z_lo = origin[2] + z * cell_z
@@ -180,6 +187,26 @@ def gather_neighbours(xq, xs, cell_start, origin, inv_cell, dims, radius, same_s
 
 
 @njit(cache=True)
+def near_cells(cell_start, dims, reach):
+    """One flag per cell: 1 where a cell holding points (cell_start's CSR) lies within `reach`
+    cells per axis, i.e. every cell whose row walk in gather_neighbours can meet a point."""
+    nx, ny, nz = dims[0], dims[1], dims[2]
+    near = np.zeros(nx * ny * nz, dtype=np.uint8)
+    for z in range(nz):
+        for y in range(ny):
+            row = (z * ny + y) * nx
+            for x in range(nx):
+                if cell_start[row + x + 1] == cell_start[row + x]:
+                    continue
+                for zz in range(max(z - reach[2], 0), min(z + reach[2], nz - 1) + 1):
+                    for yy in range(max(y - reach[1], 0), min(y + reach[1], ny - 1) + 1):
+                        r2 = (zz * ny + yy) * nx
+                        for xx in range(max(x - reach[0], 0), min(x + reach[0], nx - 1) + 1):
+                            near[r2 + xx] = 1
+    return near
+
+
+@njit(cache=True)
 def append_lower(idx, cnt):
     """Complete upper-half lists (j > i, from gather_neighbours(upper=True)) to full lists.
 
@@ -200,6 +227,9 @@ def append_lower(idx, cnt):
     for i in range(cnt.shape[0]):
         best = max(best, cnt[i])
     return best
+
+
+NO_MASK = np.zeros(0, dtype=np.uint8)  # gather_neighbours without a near-cell mask
 
 
 def brute_force_neighbours(xq, xs, radius, same_set):
@@ -248,6 +278,7 @@ class NeighbourSearch:
         self.k_boundary = k_boundary
         self.grid: Grid | None = None
         self.boundary_start = None
+        self.boundary_near = None
         self.lists: NeighbourLists | None = None
         self._sort = None  # (cells, perm, fluid_start) scratch of `update`
 
@@ -275,9 +306,19 @@ class NeighbourSearch:
         cells = np.empty(len(xb), dtype=np.int64)
         cell_ids(xb, grid.origin, grid.inv_cell, grid.dims, cells)
         order = np.empty(len(xb), dtype=np.int64)
-        self.boundary_start = counting_sort(cells, grid.n_cells, order)
+        start = counting_sort(cells, grid.n_cells, order)
         self.boundary.reorder(order)
+        self.use_boundary_sort(start)
         return True
+
+    def use_boundary_sort(self, boundary_start: np.ndarray) -> None:
+        """The walls' cell offsets in the current grid, and the cells near them: fluid particles
+        further than the row walk's reach from every wall skip the wall search (in a deep or
+        spread-out scene most of them)."""
+        g = self.grid
+        self.boundary_start = boundary_start
+        reach = np.ceil(self.h * g.inv_cell).astype(np.int64)  # as gather_neighbours' row walk
+        self.boundary_near = near_cells(boundary_start, g.dims, reach)
 
     # -- public -------------------------------------------------------------------------------
     def update(self, x_fluid: np.ndarray) -> np.ndarray:
@@ -311,10 +352,11 @@ class NeighbourSearch:
             # fluid pairs are symmetric: gather j > i in parallel, then append each pair to the
             # lower particle's row serially (DamBreakModel: 0.66x the time of a full gather)
             gather_neighbours(xs, xs, fluid_start, g.origin, g.inv_cell, g.dims, self.h, True, True,
-                              lists.fluid, lists.fluid_count)
+                              NO_MASK, lists.fluid, lists.fluid_count)
             most_f = append_lower(lists.fluid, lists.fluid_count)
             most_b = gather_neighbours(xs, self.boundary.x, self.boundary_start, g.origin, g.inv_cell,
-                                       g.dims, self.h, False, False, lists.boundary, lists.boundary_count)
+                                       g.dims, self.h, False, False, self.boundary_near, lists.boundary,
+                                       lists.boundary_count)
             if most_f <= self.k_fluid and most_b <= self.k_boundary:
                 return
             # grow the stride (rounded up to a multiple of 16) and rebuild; rare

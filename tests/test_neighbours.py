@@ -31,6 +31,28 @@ def test_matches_brute_force_after_sorting(seed, n, nb):
     assert np.array_equal(np.sort(perm), np.arange(n))
 
 
+def test_fluid_far_from_walls_skips_the_wall_search_and_misses_nothing():
+    # a floor of wall points under a tall column: most fluid is out of the walls' reach, and the
+    # particles just within reach (above the floor, at the cell edges of the mask) must keep theirs
+    rng = np.random.default_rng(3)
+    h = 0.1
+    gx, gz = np.meshgrid(np.arange(0, 0.6, 0.0375), np.arange(0, 0.6, 0.0375))
+    floor = np.column_stack([gx.ravel(), np.zeros(gx.size), gz.ravel()])
+    fluid = rng.uniform([0, 0.0, 0], [0.6, 1.2, 0.6], (1500, 3))
+    search = NeighbourSearch(h, Boundary(floor, h, 1000.0))
+    xs = fluid[search.update(fluid)]
+    nl, g = search.lists, search.grid
+    want = brute_force_neighbours(xs, search.boundary.x, h, False)
+    assert all(np.array_equal(a, b) for a, b in zip(_lists(nl.boundary, nl.boundary_count), want))
+    cells = np.empty(len(xs), dtype=np.int64)
+    from ipsph.neighbours import cell_ids
+    cell_ids(xs, g.origin, g.inv_cell, g.dims, cells)
+    skipped = search.boundary_near[cells] == 0
+    assert skipped.mean() > 0.5                      # the mask does skip most of the column
+    assert np.all(nl.boundary_count[skipped] == 0)   # and only particles without wall neighbours
+    assert np.any((nl.boundary_count == 0) & ~skipped)  # the mask is conservative near its edge
+
+
 def test_strict_radius_and_self_excluded():
     h = 0.1
     x = np.array([[0.0, 0, 0], [0.1, 0, 0], [0.0999999, 0.0, 0.0]]) + 0.5
