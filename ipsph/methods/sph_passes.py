@@ -2,7 +2,7 @@
 
 Every pass is a gather: `prange` over fluid particles i, reading neighbours j (fluid) and b
 (boundary, effective mass m_b = rho0 Psi_b), writing index i only. All fluid particles have one
-mass `mf` (one rest density, one radius per scene: sampling.py), so it is a scalar, factored out of
+mass `mf` (one rest density, one radius per scene: simulation.py), so it is a scalar, factored out of
 the fluid sums; only the walls' masses are gathered. Arguments follow one order:
 positions and per-particle inputs, the neighbour lists (nf, cf: fluid indices and counts;
 nb, cb: boundary), scalars, outputs last. Notation: x_ij = x_i - x_j, r_ij = |x_ij|,
