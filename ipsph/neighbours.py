@@ -280,7 +280,7 @@ class NeighbourSearch:
         self.boundary_start = None
         self.boundary_near = None
         self.lists: NeighbourLists | None = None
-        self._sort = None  # (cells, perm, fluid_start) scratch of `update`
+        self._sort = None  # (cells, fluid_start) scratch of `update`
 
     # -- grid ---------------------------------------------------------------------------------
     def _fit_grid(self, x_fluid: np.ndarray) -> None:
@@ -330,16 +330,16 @@ class NeighbourSearch:
         self._fit_grid(x_fluid)
         g = self.grid
         n = len(x_fluid)
-        if self._sort is None or len(self._sort[0]) != n or len(self._sort[2]) != g.n_cells + 2:
+        if self._sort is None or len(self._sort[0]) != n or len(self._sort[1]) != g.n_cells + 2:
             # per-step scratch, kept: the cell offsets are 8 bytes per cell (~13 cells per particle)
-            self._sort = (np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64),
-                          np.empty(g.n_cells + 2, dtype=np.int64))
-        cells, perm, fluid_start = self._sort
+            self._sort = (np.empty(n, dtype=np.int64), np.empty(g.n_cells + 2, dtype=np.int64))
+        cells, fluid_start = self._sort
+        perm = np.empty(n, dtype=np.int64)  # handed to the caller: a fresh array
         cell_ids(x_fluid, g.origin, g.inv_cell, g.dims, cells)
         counting_sort_into(cells, g.n_cells, perm, fluid_start)
         xs = np.take(x_fluid, perm, axis=0)
         self._build(xs, fluid_start)
-        return perm.copy()
+        return perm
 
     def _build(self, xs, fluid_start):
         g = self.grid
