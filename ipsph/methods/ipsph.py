@@ -12,6 +12,7 @@ from __future__ import annotations
 from .base import StepReport
 from .dfsph import divergence_solve
 from .pf import ProjectiveMethod, pd_solve
+from .sph_passes import NO_DISPLACEMENT
 
 
 class IPSPH(ProjectiveMethod):
@@ -32,7 +33,8 @@ class IPSPH(ProjectiveMethod):
                                           cfg.ipsph_density_error_pct / 100.0, cfg.ipsph_warm_start)
             rep.solver_maxed += rep.pd_passes >= cfg.ipsph_max_passes and err > cfg.ipsph_density_error_pct / 100.0
         with self.timer("xsph"):
-            self.projected_velocities(dt, x_old, st.pd_warm)
+            # XSPH also sums this step's PF displacement for the next step's warm start (if on)
+            self.projected_velocities(dt, x_old, st.pd_warm if cfg.ipsph_warm_start > 0.0 else NO_DISPLACEMENT)
         if cfg.divergence_solve:
             with self.timer("divergenceSolve"):
                 rep.divergence_iterations, rep.divergence_error, maxed = divergence_solve(self, dt, st.k_div, self.drho)
