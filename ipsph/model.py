@@ -119,6 +119,7 @@ class Scene:
     gravity: Vec3 = (0.0, -9.81, 0.0)
     end_time: float = 2.0
     viscosity: float = 0.01             # XSPH zeta
+    standard_viscosity: float = 0.0     # nu (m^2/s) of SPlisHSPlasH's "Standard" viscosity; 0 = off
     time_step: TimeStepConfig = TimeStepConfig()
     solver: SolverConfig = SolverConfig()
     fluids: tuple[FluidSpec, ...] = ()

@@ -100,6 +100,10 @@ PARAMS: tuple[Param, ...] = (
        "end_time", lo=0.0, hi=1e6, lo_open=True),
     _P("simulation.viscosity", "float", 0.01, "", "XSPH viscosity coefficient zeta "
        "(0.01-0.03 typical; 0 disables it).", "viscosity", lo=0.0, hi=1.0),
+    _P("simulation.standard_viscosity", "float", 0.0, "m^2/s", "Kinematic viscosity nu of "
+       "SPlisHSPlasH's \"Standard\" viscosity (an explicit SPH viscous acceleration, "
+       "docs/method.md); 0 disables it. SPlisHSPlasH scenes with viscosityMethod 1 set it.",
+       "standard_viscosity", lo=0.0, hi=10.0),
     # -- [time_step] ----------------------------------------------------------------------------
     _P("time_step.cfl_factor", "float", 1.0, "", "CFL factor lambda in "
        "dt = lambda * 0.4 * d / max|v|.", "time_step.cfl_factor", lo=0.0, hi=2.5, lo_open=True),

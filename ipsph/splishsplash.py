@@ -81,6 +81,7 @@ validated as a TOML scene, so override keys are ipsph's (`--set simulation.metho
 | `Projective Fluids`: `minIterations`, `maxIterations`, `maxError` (%) | `solver.ipsph.min_passes`, `max_passes`, `density_error_pct` (used when you switch the method to ipsph; plain PF runs `solver.pf.passes` = 3 fixed passes, as SPlisHSPlasH does) |
 | 2.0.0 flat `maxIterations`, `maxError`, ... | as the block of the scene's method; `stiffness` -> `solver.pf.stiffness` |
 | `Materials[].density0`, `viscosity` (also inside a `"... viscosity"` block) | `simulation.density0`, `simulation.viscosity` (XSPH zeta) |
+| `Materials[].viscosityMethod` 1 (Standard) with its `viscosity` | `simulation.standard_viscosity` (nu, the same model), `simulation.viscosity` = 0 |
 | `dataExportFPS` | `output.fps` |
 | `cameraPosition`, `cameraLookat` | `render.camera_position`, `render.focal_point` |
 | `FluidBlocks[]`: `start`, `end`, `translation`, `scale`, `initialVelocity` | `[[fluid]] box` with min = scale * start + translation, max = scale * end + translation (as SPlisHSPlasH's scene loader), `velocity` |
@@ -96,9 +97,11 @@ Refused (ConfigError): `simulationMethod` other than 4 or 5, `denseMode` other t
 Warned about, in one message (`Scene.warnings`): every other key, e.g.
 `boundaryHandlingMethod` (ipsph always uses Akinci et al. 2012 boundary particles),
 `numberOfStepsPerRenderUpdate`, `mapResolution`, `color`, `surfaceTension`, and a
-`viscosityMethod` other than XSPH: its `viscosity` value is then used as the XSPH coefficient
-(method 0, None, gives zeta = 0). Where a key is absent, SPlisHSPlasH's own default is used
-(listed in the table), except `end_time`, which defaults to 2.0 s.
+`viscosityMethod` other than XSPH or Standard: its `viscosity` value is then used as the XSPH
+coefficient (method 0, None, gives zeta = 0). The Standard model's wall friction
+(`viscosityBoundary`, default 0) is not imported (warned if set). Where a key is absent,
+SPlisHSPlasH's own default is used (listed in the table), except `end_time`, which defaults to
+2.0 s.
 """
 
 
@@ -353,8 +356,15 @@ class _Importer:
                             "(multiphase) are not supported")
         if densities:
             sim["density0"] = densities.pop()
+        standard = {m == 1 for _, _, v, m in found if v is not None}
+        if len(standard) > 1:
+            raise self.fail("Materials", "fluids with different viscosity methods are not supported")
         if viscosities:
-            sim["viscosity"] = viscosities.pop()
+            if standard.pop():  # SPlisHSPlasH's Standard viscosity: the same model, no XSPH on top
+                sim["standard_viscosity"] = viscosities.pop()
+                sim["viscosity"] = 0.0
+            else:
+                sim["viscosity"] = viscosities.pop()
         else:
             self.notes.append("no viscosity given: XSPH zeta stays at ipsph's default")
 
@@ -384,6 +394,10 @@ class _Importer:
             if vmethod == 0:
                 visc = 0.0
                 self.notes.append(f"{label}.viscosityMethod=0 (None): XSPH viscosity zeta = 0")
+            elif vmethod == 1:
+                if visc is not None:
+                    self.notes.append(f"{label}.viscosityMethod=1 (Standard): "
+                                      f"simulation.standard_viscosity = {visc:g} m^2/s, XSPH off")
             elif visc is not None:
                 self.notes.append(f"{label}.viscosityMethod={vmethod} ({vname}) is not XSPH: "
                                   f"its viscosity {visc:g} is used as the XSPH coefficient zeta")

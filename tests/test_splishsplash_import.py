@@ -70,12 +70,12 @@ def test_current_layout_solver_blocks_are_mapped():
     assert (sv.divergence_error_pct, sv.divergence_max_iterations) == (0.1, 100)
     assert sv.divergence_solve is True
     assert s.time_step.dt_initial == 0.005 and s.time_step.cfl_factor == 1.0
-    assert s.viscosity == 0.01
+    assert (s.standard_viscosity, s.viscosity) == (0.01, 0.0)  # its Standard model, no XSPH on top
     w = s.warnings[0]
     assert "numberOfStepsPerRenderUpdate" in w and "particleAttributes" in w
     assert "boundaryHandlingMethod=2 (ipsph always uses Akinci et al. 2012" in w
     assert "mapResolution" in w and "RigidBodies[0].color" in w
-    assert "viscosityMethod=1 (Standard) is not XSPH: its viscosity 0.01 is used as the XSPH" in w
+    assert "viscosityMethod=1 (Standard): simulation.standard_viscosity = 0.01 m^2/s, XSPH off" in w
 
 
 @needs_anchors
@@ -203,3 +203,18 @@ def test_missing_rigid_body_mesh_shows_both_paths(tmp_path):
     msg = str(e.value)
     assert "boundary[0].mesh: mesh file not found: '../models/Nope.obj'" in msg
     assert str((tmp_path.parent / "models" / "Nope.obj").resolve()) in msg
+
+
+def test_standard_viscosity_is_imported_as_the_same_model(tmp_path):
+    data = {"FluidBlocks": [BLOCK],
+            "Materials": [{"id": "Fluid", "viscosityMethod": 1,
+                           "Standard viscosity": {"viscosity": 0.02, "viscosityBoundary": 0.5}}]}
+    s = import_scene(scene_file(tmp_path, data))
+    assert (s.standard_viscosity, s.viscosity) == (0.02, 0.0)
+    w = s.warnings[0]
+    assert "viscosityBoundary" in w  # the model's wall friction is not imported: said, not dropped
+    assert "standard_viscosity = 0.02 m^2/s, XSPH off" in w
+    # another non-XSPH model keeps the documented fallback (its value as XSPH zeta)
+    data["Materials"] = [{"id": "Fluid", "viscosityMethod": 3, "viscosity": 0.02}]
+    s = import_scene(scene_file(tmp_path, data, "b.json"))
+    assert (s.standard_viscosity, s.viscosity) == (0.0, 0.02)

@@ -90,8 +90,9 @@ class DFSPH(Method):
                 rep.solver_maxed += maxed
         with self.timer("xsph"):
             st.v += dt * self.g
+            # (lam is not read without a displacement)
             xsph(st.x, st.v, self.mf, self.rho, self.gb, self.lam, nf, cf, self.h, self.scene.viscosity,
-                 self.scratch_v, self.drho, NO_DISPLACEMENT)  # (lam is not read without a displacement)
+                 self.scene.standard_viscosity * dt, self.scratch_v, self.drho, NO_DISPLACEMENT)
             st.v[:] = self.scratch_v
         with self.timer("densitySolve"):
             rep.density_iterations, maxed = self.density_solve(dt)

@@ -91,7 +91,8 @@ class ProjectiveMethod(Method):
         return x_old
 
     def projected_velocities(self, dt: float, x_old: np.ndarray, disp: np.ndarray = NO_DISPLACEMENT) -> None:
-        """v = (x - x^n) / dt from the projected positions, then XSPH.
+        """v = (x - x^n) / dt from the projected positions, then the viscosity pass (XSPH, and
+        SPlisHSPlasH's Standard viscosity if the scene sets one: method.md section 1).
 
         Leaves D rho/Dt of the unfiltered velocities in self.drho (PF's divergence error, IPSPH's
         divergence warm-start mask) and, if `disp` has a row per particle, the step's final PF
@@ -101,7 +102,7 @@ class ProjectiveMethod(Method):
         st.v[:] = (st.x - x_old) / dt
         _, _, nf, cf, _, _ = self.lists()
         xsph(st.x, st.v, self.mf, self.rho, self.gb, st.pd_lambda, nf, cf, self.h, self.scene.viscosity,
-             self.scratch_v, self.drho, disp)
+             self.scene.standard_viscosity * dt, self.scratch_v, self.drho, disp)
         st.v[:] = self.scratch_v
 
     def pf_pressure(self, dt: float) -> np.ndarray:

@@ -235,10 +235,15 @@ def apply_stiffness(x, mf, gb, nf, cf, h, k, dt, v, k_total):
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)
-def xsph(x, v, mf, rho, gb, lam, nf, cf, h, zeta, v_out, drho, disp):
-    """XSPH velocity filter [SB12]: v_i <- v_i - zeta sum_j (mf / rho_j) (v_i - v_j) W_ij.
+def xsph(x, v, mf, rho, gb, lam, nf, cf, h, zeta, nu_dt, v_out, drho, disp):
+    """The viscosity pass: XSPH filter [SB12] and SPlisHSPlasH's "Standard" viscosity, explicit:
 
-    Walls take no part in the filter. By-products of the same neighbour loop:
+        v_i <- v_i - zeta sum_j (mf / rho_j) (v_i - v_j) W_ij
+                   + 10 nu dt sum_j (mf / rho_j) (v_ij . x_ij) / (r_ij^2 + 0.01 H^2) grad W_ij
+
+    (the second line is the SPH Laplacian of Monaghan 2005 with the 2 (d + 2) = 10 of 3D, as in
+    SPlisHSPlasH's Viscosity_Standard without its wall term, whose default is 0; nu_dt = nu dt).
+    Walls take no part. By-products of the same neighbour loop:
         drho_i = D rho_i/Dt of the input velocities (walls through gb_i, see
                  density_factor_lambda): PF's divergence error, IPSPH's divergence warm-start mask;
         disp_i = sum_j mf (lam_i + lam_j) grad W_ij + lam_i gb_i, only if disp has n rows
@@ -246,6 +251,7 @@ def xsph(x, v, mf, rho, gb, lam, nf, cf, h, zeta, v_out, drho, disp):
                  (pf_global's d_k), IPSPH's next projection warm start.
     """
     with_disp = disp.shape[0] == x.shape[0]
+    eps = 0.01 * h * h
     bufs = _fluid_buffers(9, nf)
     for c in prange(bufs.shape[0]):
         buf = bufs[c]
@@ -262,29 +268,40 @@ def xsph(x, v, mf, rho, gb, lam, nf, cf, h, zeta, v_out, drho, disp):
             a0 = 0.0
             a1 = 0.0
             a2 = 0.0
+            s0 = 0.0
+            s1 = 0.0
+            s2 = 0.0
             p0 = 0.0
             p1 = 0.0
             p2 = 0.0
             dr = 0.0
             for k in range(n_f):
                 d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
-                r = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+                r2 = d0 * d0 + d1 * d1 + d2 * d2
+                r = np.sqrt(r2)
                 u0, u1, u2 = buf[C1, k], buf[C2, k], buf[C3, k]
-                wij = buf[C4, k] * w(r, h)
+                inv_rho = buf[C4, k]
+                wij = inv_rho * w(r, h)
                 a0 += wij * u0
                 a1 += wij * u1
                 a2 += wij * u2
                 g = grad_w_factor(r, h)
-                dr += g * (u0 * d0 + u1 * d1 + u2 * d2)
+                ud = u0 * d0 + u1 * d1 + u2 * d2
+                dr += g * ud
+                sv = inv_rho * ud * g / (r2 + eps)
+                s0 += sv * d0
+                s1 += sv * d1
+                s2 += sv * d2
                 gl = buf[C5, k] * g
                 p0 += gl * d0
                 p1 += gl * d1
                 p2 += gl * d2
             drho[i] = mf * dr + vi0 * gb[i, 0] + vi1 * gb[i, 1] + vi2 * gb[i, 2]
             zm = zeta * mf
-            v_out[i, 0] = vi0 - zm * a0
-            v_out[i, 1] = vi1 - zm * a1
-            v_out[i, 2] = vi2 - zm * a2
+            nm = 10.0 * nu_dt * mf
+            v_out[i, 0] = vi0 - zm * a0 + nm * s0
+            v_out[i, 1] = vi1 - zm * a1 + nm * s1
+            v_out[i, 2] = vi2 - zm * a2 + nm * s2
             if with_disp:
                 disp[i, 0] = mf * p0 + li * gb[i, 0]
                 disp[i, 1] = mf * p1 + li * gb[i, 1]
