@@ -23,10 +23,11 @@ _REPO_ROOT = Path(__file__).resolve().parents[2]
 
 
 def ours_env(threads: int | None = None, extra: dict[str, str] | None = None) -> dict[str, str]:
-    """Environment for a worker: ipsph importable, NUMBA_NUM_THREADS set, OpenMP as `ipsph run` sets it."""
-    from ..cli import OMP_POLICY
+    """Environment for a worker: ipsph importable, NUMBA_NUM_THREADS set. OpenMP keeps its
+    default wait policy (or the caller's), as SPlisHSPlasH's workers do and as the Python API
+    does: the workers drive `Simulation` and render nothing, so `ipsph run`'s passive policy,
+    which is there for its render process, does not apply."""
     env = dict(os.environ)
-    env.setdefault(*OMP_POLICY)
     env["PYTHONPATH"] = os.pathsep.join(p for p in (str(_REPO_ROOT), env.get("PYTHONPATH", "")) if p)
     if threads is not None:
         env["NUMBA_NUM_THREADS"] = str(threads)
