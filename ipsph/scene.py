@@ -102,7 +102,8 @@ PARAMS: tuple[Param, ...] = (
        "(0.01-0.03 typical; 0 disables it).", "viscosity", lo=0.0, hi=1.0),
     _P("simulation.standard_viscosity", "float", 0.0, "m^2/s", "Kinematic viscosity nu of "
        "SPlisHSPlasH's \"Standard\" viscosity (an explicit SPH viscous acceleration, "
-       "docs/method.md); 0 disables it. SPlisHSPlasH scenes with viscosityMethod 1 set it.",
+       "docs/method.md); 0 disables it. It also limits the step to H^2 / (60 nu). "
+       "SPlisHSPlasH scenes with viscosityMethod 1 set it.",
        "standard_viscosity", lo=0.0, hi=10.0),
     # -- [time_step] ----------------------------------------------------------------------------
     _P("time_step.cfl_factor", "float", 1.0, "", "CFL factor lambda in "

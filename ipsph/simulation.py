@@ -6,9 +6,10 @@
     sim.positions, sim.velocities, sim.densities, sim.pressures, sim.ids
 
 Time stepping (method.md section 1): one dt per step, from the CFL condition evaluated at the
-end of the previous step, dt = clamp(cfl * 0.4 * d / max|v|, dt_min, dt_max); steps whose CFL
-value fell below dt_min are counted, never hidden. When the next step would cross a frame
-time, the remaining time is spread over the last two steps (no sliver steps).
+end of the previous step, dt = clamp(cfl * 0.4 * d / max|v|, dt_min, dt_max) (with Standard
+viscosity also at most H^2 / (60 nu)); steps whose CFL value fell below dt_min are counted, never
+hidden. When the next step would cross a frame time, the remaining time is spread over the last
+two steps (no sliver steps).
 """
 from __future__ import annotations
 
@@ -39,6 +40,12 @@ class StepStats(StepReport):
     max_speed: float = 0.0
     kinetic_energy: float = 0.0
     dt_clamped: bool = False
+
+
+# Explicit Standard viscosity is stable while nu dt lambda_max <= 2, lambda_max the largest
+# eigenvalue of its operator: 59.6 / H^2 on the lattice (power iteration, method.md section 1).
+# The step keeps half of that margin: dt <= H^2 / (60 nu).
+VISCOUS_STEP = 60.0
 
 
 def sample_scene(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
@@ -93,7 +100,7 @@ class Simulation:
         vmax, _ = speed_energy(self.state.v, self.state.m)
         self.dt_next, self._clamped = self._cfl(vmax)
         if ts.dt_initial is not None:
-            self.dt_next = min(ts.dt_initial, self.dt_max)
+            self.dt_next = min(ts.dt_initial, self.dt_max, max(self._viscous_dt(), self.dt_min))
 
     # -- construction -------------------------------------------------------------------------
     @classmethod
@@ -115,9 +122,16 @@ class Simulation:
 
     # -- clock --------------------------------------------------------------------------------
     def _cfl(self, vmax: float) -> tuple[float, bool]:
-        """dt = clamp(cfl * 0.4 * d / max|v|, dt_min, dt_max); True when clamped up to dt_min."""
+        """dt = clamp(min(cfl * 0.4 * d / max|v|, dt_viscous), dt_min, dt_max); True when clamped
+        up to dt_min. dt_viscous = H^2 / (VISCOUS_STEP nu) with Standard viscosity, else infinite."""
         raw = self.scene.time_step.cfl_factor * 0.4 * self.spacing / vmax if vmax > 0 else math.inf
+        raw = min(raw, self._viscous_dt())
         return min(max(raw, self.dt_min), self.dt_max), raw < self.dt_min
+
+    def _viscous_dt(self) -> float:
+        """H^2 / (VISCOUS_STEP nu): the explicit Standard viscosity's step limit (inf without it)."""
+        nu = self.scene.standard_viscosity
+        return self.support * self.support / (VISCOUS_STEP * nu) if nu > 0.0 else math.inf
 
     def step(self, dt: float | None = None) -> StepStats:
         """Advance one step of `dt` (default: the CFL step) and check the state's health."""

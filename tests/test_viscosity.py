@@ -86,3 +86,28 @@ def test_rigid_motion_is_untouched_and_other_motion_loses_energy():
     assert np.sum((v + dv) ** 2) < np.sum(v ** 2)  # viscosity dissipates kinetic energy
     # nu = 0 leaves the velocities as XSPH alone sets them (zeta = 0: unchanged)
     assert np.array_equal(viscous_change(block, v, nu=0.0), np.zeros_like(v))
+
+
+# A thick fluid: at nu = 0.5 m^2/s the lattice's stability limit is 0.67 ms (nu dt lambda_max <= 2,
+# lambda_max = 59.6 / H^2), far below the 5 ms the velocity CFL rule would allow.
+THICK_NU = 0.5
+
+
+def test_thick_fluid_steps_within_the_viscous_limit_and_stays_calm():
+    from ipsph.scene import scene_from_dict
+    from ipsph.simulation import VISCOUS_STEP, Simulation
+    scene = scene_from_dict({
+        "simulation": {"method": "ipsph", "particle_radius": R, "end_time": 0.05, "viscosity": 0.0,
+                       "standard_viscosity": THICK_NU},
+        "time_step": {"dt_max": 0.005},
+        "fluid": [{"name": "block", "box": {"min": [0.05, 0.05, 0.05], "max": [0.35, 0.35, 0.35]}}],
+        "boundary": [{"name": "box", "role": "container", "box": {"min": [0, 0, 0], "max": [0.4, 0.6, 0.4]}}],
+    }, name="thick")
+    sim = Simulation.from_scene(scene)
+    limit = sim.support ** 2 / (VISCOUS_STEP * THICK_NU)
+    dts, speeds = [], []
+    sim.run(end_time=0.05, fps=100,
+            on_step=lambda s: (dts.append(s.dt), speeds.append(np.abs(sim.velocities).max())))
+    assert max(dts) <= limit * (1 + 1e-12)
+    # falling 5 cm at most for 0.05 s: anything near 1 m/s is the explicit viscosity blowing up
+    assert max(speeds) < 1.0, max(speeds)
