@@ -252,6 +252,7 @@ def xsph(x, v, mf, rho, gb, lam, nf, cf, h, zeta, nu_dt, v_out, drho, disp):
     """
     with_disp = disp.shape[0] == x.shape[0]
     eps = 0.01 * h * h
+    standard = nu_dt > 0.0
     bufs = _fluid_buffers(9, nf)
     for c in prange(bufs.shape[0]):
         buf = bufs[c]
@@ -288,10 +289,11 @@ def xsph(x, v, mf, rho, gb, lam, nf, cf, h, zeta, nu_dt, v_out, drho, disp):
                 g = grad_w_factor(r, h)
                 ud = u0 * d0 + u1 * d1 + u2 * d2
                 dr += g * ud
-                sv = inv_rho * ud * g / (r2 + eps)
-                s0 += sv * d0
-                s1 += sv * d1
-                s2 += sv * d2
+                if standard:  # loop-invariant: LLVM unswitches it, so nu = 0 pays no division
+                    sv = inv_rho * ud * g / (r2 + eps)
+                    s0 += sv * d0
+                    s1 += sv * d1
+                    s2 += sv * d2
                 gl = buf[C5, k] * g
                 p0 += gl * d0
                 p1 += gl * d1
