@@ -87,6 +87,8 @@ class SolverConfig:
     ipsph_min_passes: int = 2
     ipsph_max_passes: int = 100
     ipsph_warm_start: float = 0.8      # fraction of last step's multipliers to start from; 0 = off
+    # the pressure solves' per-pair kernel gradients, kept while they fit (0 = never)
+    pair_cache_mb: float = 64.0
 
 
 @dataclass(frozen=True)

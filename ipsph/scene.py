@@ -116,6 +116,13 @@ PARAMS: tuple[Param, ...] = (
     _P("time_step.dt_initial", "float", None, "s", "First time step. auto: the CFL value of the "
        "initial velocities.", "time_step.dt_initial", lo=0.0, hi=1.0, lo_open=True,
        optional=True),
+    # -- [solver] -------------------------------------------------------------------------------
+    _P("solver.pair_cache_mb", "float", 64.0, "MiB", "Memory the pressure solves (DFSPH's, IPSPH's "
+       "divergence solve) may use to keep each fluid pair's kernel gradient instead of evaluating "
+       "it in every iteration: 24 bytes per neighbour-list slot, about 1.5 KB per particle. Over it "
+       "(about 40k fluid particles), or at 0, they evaluate the kernel again: the same results up "
+       "to the order of floating-point additions.",
+       "solver.pair_cache_mb", lo=0.0, hi=1e6),
     # -- [solver.dfsph] -------------------------------------------------------------------------
     _P("solver.dfsph.density_error_pct", "float", 0.01, "%", "DFSPH density solve: stop when "
        "the mean density error is below this.", "solver.density_error_pct", lo=0.0, hi=100.0,
@@ -228,6 +235,7 @@ SECTION_DOCS = {
     "": "Top-level keys (outside any table).",
     "simulation": "The physics: method, resolution, material, duration.",
     "time_step": "Adaptive time step (CFL). method.md section 1.",
+    "solver": "Shared by the pressure solvers.",
     "solver.dfsph": "DFSPH pressure and divergence solves (method.md section 2). The divergence "
                     "keys also drive the divergence solve of IPSPH.",
     "solver.pf": "Projective Fluids (method.md section 3); the stiffness also applies to IPSPH.",

@@ -8,7 +8,7 @@ test does not depend on the neighbour search.
 import numpy as np
 import pytest
 
-from ipsph.methods.sph_passes import NO_DISPLACEMENT, density_factor_lambda, xsph
+from ipsph.methods.sph_passes import NO_DISPLACEMENT, NO_PAIR_CACHE, density_factor_lambda, xsph
 
 RHO0 = 1000.0
 R = 0.025
@@ -41,7 +41,7 @@ def lattice_block(n1, support_in_d):
     rho, alpha, lam, err, gb = np.empty(n), np.empty(n), np.zeros(n), np.empty(n), np.empty((n, 3))
     no_walls = np.zeros((n, 1), np.int32), np.zeros(n, np.int32)
     density_factor_lambda(x, mf, np.zeros((1, 3)), np.zeros(1), nf, cf, *no_walls, h, RHO0, rho, alpha,
-                          lam, err, np.empty(n, np.int64), gb)
+                          lam, err, np.empty(n, np.int64), gb, NO_PAIR_CACHE)
     inner = np.all((x > x.min(0) + h) & (x < x.max(0) - h), axis=1)
     return x, mf, rho, gb, lam, nf, cf, h, inner
 
@@ -49,7 +49,8 @@ def lattice_block(n1, support_in_d):
 def viscous_change(block, v, zeta=0.0, nu=NU):
     x, mf, rho, gb, lam, nf, cf, h, _ = block
     out = np.empty_like(v)
-    xsph(x, v, mf, rho, gb, lam, nf, cf, h, zeta, nu * DT, out, np.empty(len(x)), NO_DISPLACEMENT)
+    xsph(x, v, mf, rho, gb, lam, nf, cf, h, zeta, nu * DT, out, np.empty(len(x)), NO_DISPLACEMENT,
+         NO_PAIR_CACHE)
     return out - v
 
 

@@ -11,7 +11,9 @@ from ..boundary import Boundary
 from ..model import Scene
 from ..neighbours import NeighbourSearch
 from ..particles import ParticleState
-from .sph_passes import mean
+from .sph_passes import NO_PAIR_CACHE, mean
+
+PAIR_CACHE_BYTES = 24  # per neighbour-list slot: mf grad W_ij, three float64
 
 
 @dataclass
@@ -59,6 +61,11 @@ class Method:
         self.drho = np.zeros(n)
         self.scratch_v = np.zeros((n, 3))
         self.gb = np.zeros((n, 3))                  # sum_b m_b grad W_ib, for the pressure solves
+        # the pair cache mf grad W_ij (sph_passes.NO_PAIR_CACHE when off or not filled at the
+        # current positions): `pair_cache_to_fill()` hands it to the filling pass, the pressure
+        # solves read `pair_grad`, and every neighbour search invalidates it
+        self.pair_grad = NO_PAIR_CACHE
+        self._pair_store = NO_PAIR_CACHE
         state.zeros("pressure")                     # output field, follows reordering
         self.dt_prev: float | None = None
         self.report = StepReport()
@@ -77,6 +84,7 @@ class Method:
 
         The state is permuted in place; extra arrays passed in `follow` are returned permuted.
         """
+        self.pair_grad = NO_PAIR_CACHE
         with self.timer("neighbourSearch"):
             perm = self.search.update(self.state.x)
             self.state.permute(perm)
@@ -86,6 +94,19 @@ class Method:
         """(x_b, m_b, nf, cf, nb, cb): everything a pass needs to see neighbours and walls."""
         nl = self.search.lists
         return self.boundary.x, self.boundary.m, nl.fluid, nl.fluid_count, nl.boundary, nl.boundary_count
+
+    def pair_cache_to_fill(self) -> np.ndarray:
+        """The pair cache for this step's lists, to hand to the pass that fills it, or
+        NO_PAIR_CACHE when it would exceed `solver.pair_cache_mb`. Marks it valid (`pair_grad`):
+        call it only for a pass at the positions the following solves use."""
+        n, k = self.search.lists.fluid.shape
+        if n == 0 or PAIR_CACHE_BYTES * n * k > self.cfg.pair_cache_mb * 2.0**20:
+            self._pair_store = self.pair_grad = NO_PAIR_CACHE
+            return NO_PAIR_CACHE
+        if self._pair_store.shape != (n, 3, k):   # first use, or the list stride grew
+            self._pair_store = np.empty((n, 3, k))
+        self.pair_grad = self._pair_store
+        return self.pair_grad
 
     def density_errors(self) -> tuple[float, float]:
         """(mean positive, max) density error of the last `density_factor_lambda` evaluation."""

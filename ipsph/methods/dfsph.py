@@ -15,8 +15,8 @@ from __future__ import annotations
 import numpy as np
 
 from .base import Method, StepReport
-from .sph_passes import (NO_DISPLACEMENT, apply_stiffness, density_factor_lambda, density_residual,
-                         divergence_residual, mean, xsph)
+from .sph_passes import (NO_DISPLACEMENT, NO_PAIR_CACHE, apply_stiffness, density_factor_lambda,
+                         density_residual, divergence_residual, mean, xsph)
 
 
 def divergence_solve(method: Method, dt: float, k_total: np.ndarray,
@@ -30,31 +30,32 @@ def divergence_solve(method: Method, dt: float, k_total: np.ndarray,
     D rho_i/Dt already at hand for that test (IPSPH: XSPH's by-product, from the velocities just
     before the filter), which saves one residual pass; otherwise it is computed here.
     `k_total` receives everything applied (the next warm start).
-    Needs method.alpha, method.n_nbrs and method.gb at the current positions.
+    Needs method.alpha, method.n_nbrs and method.gb at the current positions, and reads the pair
+    cache method.pair_grad when the last pass at these positions filled it.
     Returns (iterations, error, hit_cap).
     """
     st, cfg = method.state, method.cfg
     _, _, nf, cf, _, _ = method.lists()
     x, v, m, h = st.x, st.v, method.mf, method.h
-    k, drho, gb = method.k, method.drho, method.gb
+    k, drho, gb, pg = method.k, method.drho, method.gb, method.pair_grad
     eta = cfg.divergence_error_pct / 100.0
     if method.dt_prev is not None:
         if rate is None:
-            divergence_residual(x, v, m, gb, nf, cf, h, method.alpha, method.n_nbrs, dt, drho, k)
+            divergence_residual(x, v, m, gb, nf, cf, pg, h, method.alpha, method.n_nbrs, dt, drho, k)
             positive = drho > 0.0
         else:
             positive = (rate > 0.0) & (method.n_nbrs >= 20)
         warm = np.where(positive, 0.5 * np.minimum(k_total * (method.dt_prev / dt), 0.5), 0.0)
         k_total[:] = 0.0
-        apply_stiffness(x, m, gb, nf, cf, h, warm, dt, v, k_total)
+        apply_stiffness(x, m, gb, nf, cf, pg, h, warm, dt, v, k_total)
     else:
         k_total[:] = 0.0
-    divergence_residual(x, v, m, gb, nf, cf, h, method.alpha, method.n_nbrs, dt, drho, k)
+    divergence_residual(x, v, m, gb, nf, cf, pg, h, method.alpha, method.n_nbrs, dt, drho, k)
     err = dt * mean(drho) / method.rho0
     it = 0
     while it < cfg.divergence_max_iterations and (it < cfg.divergence_min_iterations or err > eta):
-        apply_stiffness(x, m, gb, nf, cf, h, k, dt, v, k_total)
-        divergence_residual(x, v, m, gb, nf, cf, h, method.alpha, method.n_nbrs, dt, drho, k)
+        apply_stiffness(x, m, gb, nf, cf, pg, h, k, dt, v, k_total)
+        divergence_residual(x, v, m, gb, nf, cf, pg, h, method.alpha, method.n_nbrs, dt, drho, k)
         err = dt * mean(drho) / method.rho0
         it += 1
     return it, err, bool(err > eta)
@@ -77,8 +78,10 @@ class DFSPH(Method):
         st = self.state
         xb, mb, nf, cf, nb, cb = self.lists()
         with self.timer("densities"):
-            density_factor_lambda(st.x, self.mf, xb, mb, nf, cf, nb, cb, self.h, self.rho0,
-                                  self.rho, self.alpha, self.lam, self.err, self.n_nbrs, self.gb)
+            # the positions stay until the next step's advection: its solves read the pair cache
+            density_factor_lambda(st.x, self.mf, xb, mb, nf, cf, nb, cb, self.h, self.rho0, self.rho,
+                                  self.alpha, self.lam, self.err, self.n_nbrs, self.gb,
+                                  self.pair_cache_to_fill())
 
     def step(self, dt: float) -> StepReport:
         self.report = rep = StepReport(dt=dt)
@@ -92,7 +95,7 @@ class DFSPH(Method):
             st.v += dt * self.g
             # (lam is not read without a displacement)
             xsph(st.x, st.v, self.mf, self.rho, self.gb, self.lam, nf, cf, self.h, self.scene.viscosity,
-                 self.scene.standard_viscosity * dt, self.scratch_v, self.drho, NO_DISPLACEMENT)
+                 self.scene.standard_viscosity * dt, self.scratch_v, self.drho, NO_DISPLACEMENT, NO_PAIR_CACHE)
             st.v[:] = self.scratch_v
         with self.timer("densitySolve"):
             rep.density_iterations, maxed = self.density_solve(dt)
@@ -109,21 +112,22 @@ class DFSPH(Method):
         st, cfg = self.state, self.cfg
         _, _, nf, cf, _, _ = self.lists()
         x, v, m, h, k, gb = st.x, st.v, self.mf, self.h, self.k, self.gb  # gb, alpha: from prepare()
+        pg = self.pair_grad
         eta = cfg.density_error_pct / 100.0
         k_total = st.k_dens
-        density_residual(x, v, m, gb, nf, cf, h, self.rho, self.alpha, self.rho0, dt, self.err, k)
+        density_residual(x, v, m, gb, nf, cf, pg, h, self.rho, self.alpha, self.rho0, dt, self.err, k)
         if self.dt_prev is not None:
             warm = 0.5 * np.minimum(k_total * (self.dt_prev / dt) ** 2, 0.5)
             k_total[:] = 0.0
-            apply_stiffness(x, m, gb, nf, cf, h, warm, dt, v, k_total)
-            density_residual(x, v, m, gb, nf, cf, h, self.rho, self.alpha, self.rho0, dt, self.err, k)
+            apply_stiffness(x, m, gb, nf, cf, pg, h, warm, dt, v, k_total)
+            density_residual(x, v, m, gb, nf, cf, pg, h, self.rho, self.alpha, self.rho0, dt, self.err, k)
         else:
             k_total[:] = 0.0
         err = mean(self.err) / self.rho0
         it = 0
         while it < cfg.density_max_iterations and (it < cfg.density_min_iterations or err > eta):
-            apply_stiffness(x, m, gb, nf, cf, h, k, dt, v, k_total)
-            density_residual(x, v, m, gb, nf, cf, h, self.rho, self.alpha, self.rho0, dt, self.err, k)
+            apply_stiffness(x, m, gb, nf, cf, pg, h, k, dt, v, k_total)
+            density_residual(x, v, m, gb, nf, cf, pg, h, self.rho, self.alpha, self.rho0, dt, self.err, k)
             err = mean(self.err) / self.rho0
             it += 1
         return it, bool(err > eta)

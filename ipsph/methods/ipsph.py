@@ -34,7 +34,9 @@ class IPSPH(ProjectiveMethod):
             rep.solver_maxed += rep.pd_passes >= cfg.ipsph_max_passes and err > cfg.ipsph_density_error_pct / 100.0
         with self.timer("xsph"):
             # XSPH also sums this step's PF displacement for the next step's warm start (if on)
-            self.projected_velocities(dt, x_old, st.pd_warm if cfg.ipsph_warm_start > 0.0 else NO_DISPLACEMENT)
+            # and fills the pair cache for the divergence solve at the same positions
+            self.projected_velocities(dt, x_old, st.pd_warm if cfg.ipsph_warm_start > 0.0 else NO_DISPLACEMENT,
+                                      fill_pair_cache=cfg.divergence_solve)
         if cfg.divergence_solve:
             with self.timer("divergenceSolve"):
                 rep.divergence_iterations, rep.divergence_error, maxed = divergence_solve(self, dt, st.k_div, self.drho)

@@ -14,7 +14,7 @@ import numpy as np
 
 from .base import Method, StepReport
 from .pf_passes import pf_global
-from .sph_passes import NO_DISPLACEMENT, density_factor_lambda, mean, xsph
+from .sph_passes import NO_DISPLACEMENT, NO_PAIR_CACHE, density_factor_lambda, mean, xsph
 
 
 def pd_solve(method: Method, dt: float, min_passes: int, max_passes: int, tol: float,
@@ -46,8 +46,8 @@ def pd_solve(method: Method, dt: float, min_passes: int, max_passes: int, tol: f
         lam_sum[:] = 0.0
     passes = 0
     while True:
-        density_factor_lambda(x, method.mf, xb, mb, nf, cf, nb, cb, h, rho0,
-                              method.rho, method.alpha, method.lam, method.err, method.n_nbrs, method.gb)
+        density_factor_lambda(x, method.mf, xb, mb, nf, cf, nb, cb, h, rho0, method.rho, method.alpha,
+                              method.lam, method.err, method.n_nbrs, method.gb, NO_PAIR_CACHE)
         err = mean(method.err)
         if passes >= max_passes or (passes >= min_passes and err <= tol):
             break
@@ -78,7 +78,7 @@ class ProjectiveMethod(Method):
         xb, mb, nf, cf, nb, cb = self.lists()
         density_factor_lambda(np.ascontiguousarray(st.x[perm]), self.mf, xb, mb,
                               nf, cf, nb, cb, self.h, self.rho0, self.rho, self.alpha, self.lam, self.err,
-                              self.n_nbrs, self.gb)
+                              self.n_nbrs, self.gb, NO_PAIR_CACHE)
         for a in (self.rho, self.alpha, self.lam, self.err, self.n_nbrs, self.gb):
             a[perm] = a.copy()
 
@@ -90,19 +90,22 @@ class ProjectiveMethod(Method):
         (x_old,) = self.neighbour_search(x_old)
         return x_old
 
-    def projected_velocities(self, dt: float, x_old: np.ndarray, disp: np.ndarray = NO_DISPLACEMENT) -> None:
+    def projected_velocities(self, dt: float, x_old: np.ndarray, disp: np.ndarray = NO_DISPLACEMENT,
+                             fill_pair_cache: bool = False) -> None:
         """v = (x - x^n) / dt from the projected positions, then the viscosity pass (XSPH, and
         SPlisHSPlasH's Standard viscosity if the scene sets one: method.md section 1).
 
         Leaves D rho/Dt of the unfiltered velocities in self.drho (PF's divergence error, IPSPH's
         divergence warm-start mask) and, if `disp` has a row per particle, the step's final PF
-        displacement d(Lam) in it (IPSPH's next warm start).
+        displacement d(Lam) in it (IPSPH's next warm start). With `fill_pair_cache` the pass
+        also fills the pair cache for a solve that follows at these positions (IPSPH's).
         """
         st = self.state
         st.v[:] = (st.x - x_old) / dt
         _, _, nf, cf, _, _ = self.lists()
         xsph(st.x, st.v, self.mf, self.rho, self.gb, st.pd_lambda, nf, cf, self.h, self.scene.viscosity,
-             self.scene.standard_viscosity * dt, self.scratch_v, self.drho, disp)
+             self.scene.standard_viscosity * dt, self.scratch_v, self.drho, disp,
+             self.pair_cache_to_fill() if fill_pair_cache else NO_PAIR_CACHE)
         st.v[:] = self.scratch_v
 
     def pf_pressure(self, dt: float) -> np.ndarray:

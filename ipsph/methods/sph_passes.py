@@ -31,6 +31,13 @@ CHUNKS = 64  # blocks of particles per pass, each with its own scratch buffer
 
 NO_DISPLACEMENT = np.zeros((0, 3))  # xsph(..., disp=NO_DISPLACEMENT): skip the PF displacement
 
+# The pair cache G[i, :, k] = mf grad W_ij (float64, the layout of the fluid lists: (n, 3, K)).
+# The pressure solves run at fixed positions, so the pass that last visits the pairs at those
+# positions fills it (DFSPH: density_factor_lambda; IPSPH: the viscosity pass) and the
+# solves' residual and correction passes read it instead of gathering x_j and evaluating the
+# kernel. A pass given NO_PAIR_CACHE (no rows) neither fills nor reads it.
+NO_PAIR_CACHE = np.zeros((0, 3, 0))
+
 
 @njit(inline="always")
 def _buffers(rows, nf, nb):
@@ -93,7 +100,8 @@ def _weighted_gradient(n, buf, row, h):
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)
-def density_factor_lambda(x, mf, xb, mb, nf, cf, nb, cb, h, rho0, rho, alpha, lam, err, n_nbrs, gb):
+def density_factor_lambda(x, mf, xb, mb, nf, cf, nb, cb, h, rho0, rho, alpha, lam, err, n_nbrs, gb,
+                          pair_grad):
     """Density, DFSPH factor, PF multiplier, density error and wall gradient at the current positions.
 
         rho_i   = mf W(0) + sum_j mf W_ij + sum_b m_b W_ib
@@ -104,9 +112,11 @@ def density_factor_lambda(x, mf, xb, mb, nf, cf, nb, cb, h, rho0, rho, alpha, la
         C_i     = max(rho_i / rho0 - 1, 0)                                  [WKB16, unilateral]
         lam_i   = -C_i / (sum_k |G_ik|^2 + 1e-6),  sum_k |G_ik|^2 = (|g_i|^2 + sum_j |mf grad W_ij|^2) / rho0^2
         err_i   = C_i;  n_nbrs_i = |{j : r_ij < H}| + |{b : r_ib < H}|
+        pair_grad[i, :, k] = mf grad W_ij   (the pair cache; only if it has a row per particle)
     """
+    fill = pair_grad.shape[0] == x.shape[0]
     w0 = w(0.0, h)
-    bufs = _buffers(5, nf, nb)
+    bufs = _buffers(6, nf, nb)
     for c in prange(bufs.shape[0]):
         buf = bufs[c]
         lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
@@ -144,6 +154,14 @@ def density_factor_lambda(x, mf, xb, mb, nf, cf, nb, cb, h, rho0, rho, alpha, la
                 b2 += fb * d2
                 s2 += fluid * f * f * r2
                 nn += 1.0 if r < h else 0.0
+                if fill:  # loop-invariant: unswitched
+                    buf[C2, k] = f
+            if fill:
+                for k in range(n_f):
+                    f = buf[C2, k]
+                    pair_grad[i, 0, k] = f * buf[DX, k]
+                    pair_grad[i, 1, k] = f * buf[DY, k]
+                    pair_grad[i, 2, k] = f * buf[DZ, k]
             sum_sq = g0 * g0 + g1 * g1 + g2 * g2 + s2
             rho[i] = rho_i
             alpha[i] = 1.0 / max(sum_sq, 1e-5)
@@ -168,20 +186,29 @@ def _gather_rate_f(i, v, nf, n_f, buf):
 
 
 @njit(inline="always", fastmath=FAST)
-def _density_rate(i, x, v, mf, gb, nf, cf, h, buf):
-    """D rho_i / Dt = sum_j mf (v_i - v_j) . grad W_ij + v_i . gb_i   [BK17 eq. 4; gb: density_factor_lambda]."""
-    n_f = _gather_xf(i, x, nf, cf, buf)
+def _density_rate(i, x, v, mf, gb, nf, cf, pair_grad, h, buf):
+    """D rho_i / Dt = sum_j mf (v_i - v_j) . grad W_ij + v_i . gb_i   [BK17 eq. 4; gb: density_factor_lambda].
+
+    From the pair cache when it has a row per particle, else from the positions."""
+    n_f = cf[i]
     _gather_rate_f(i, v, nf, n_f, buf)
+    walls = v[i, 0] * gb[i, 0] + v[i, 1] * gb[i, 1] + v[i, 2] * gb[i, 2]
     rate = 0.0
+    if pair_grad.shape[0] == x.shape[0]:
+        g = pair_grad[i]
+        for k in range(n_f):
+            rate += buf[C1, k] * g[0, k] + buf[C2, k] * g[1, k] + buf[C3, k] * g[2, k]
+        return rate + walls
+    _gather_xf(i, x, nf, cf, buf)
     for k in range(n_f):
         d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
         f = grad_w_factor(np.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
         rate += f * (buf[C1, k] * d0 + buf[C2, k] * d1 + buf[C3, k] * d2)
-    return mf * rate + v[i, 0] * gb[i, 0] + v[i, 1] * gb[i, 1] + v[i, 2] * gb[i, 2]
+    return mf * rate + walls
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)
-def divergence_residual(x, v, mf, gb, nf, cf, h, alpha, n_nbrs, dt, drho, k):
+def divergence_residual(x, v, mf, gb, nf, cf, pair_grad, h, alpha, n_nbrs, dt, drho, k):
     """Divergence-solve residual and stiffness [BK17 Alg. 2]:
     drho_i = max(D rho_i/Dt, 0), zero for particles with < 20 neighbours; k_i = alpha_i drho_i / dt."""
     bufs = _fluid_buffers(7, nf)
@@ -191,13 +218,13 @@ def divergence_residual(x, v, mf, gb, nf, cf, h, alpha, n_nbrs, dt, drho, k):
         for i in range(lo, hi):
             d = 0.0
             if n_nbrs[i] >= 20:
-                d = max(_density_rate(i, x, v, mf, gb, nf, cf, h, buf), 0.0)
+                d = max(_density_rate(i, x, v, mf, gb, nf, cf, pair_grad, h, buf), 0.0)
             drho[i] = d
             k[i] = alpha[i] * d / dt
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)
-def density_residual(x, v, mf, gb, nf, cf, h, rho, alpha, rho0, dt, rho_err, k):
+def density_residual(x, v, mf, gb, nf, cf, pair_grad, h, rho, alpha, rho0, dt, rho_err, k):
     """Density-solve residual and stiffness [BK17 Alg. 3]:
     rho*_i = max(rho_i + dt D rho_i/Dt, rho0);  rho_err_i = rho*_i - rho0;  k_i = alpha_i rho_err_i / dt^2."""
     bufs = _fluid_buffers(7, nf)
@@ -205,37 +232,53 @@ def density_residual(x, v, mf, gb, nf, cf, h, rho, alpha, rho0, dt, rho_err, k):
         buf = bufs[c]
         lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
         for i in range(lo, hi):
-            rate = _density_rate(i, x, v, mf, gb, nf, cf, h, buf)
+            rate = _density_rate(i, x, v, mf, gb, nf, cf, pair_grad, h, buf)
             e = max(rho[i] + dt * rate, rho0) - rho0
             rho_err[i] = e
             k[i] = alpha[i] * e / (dt * dt)
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)
-def apply_stiffness(x, mf, gb, nf, cf, h, k, dt, v, k_total):
+def apply_stiffness(x, mf, gb, nf, cf, pair_grad, h, k, dt, v, k_total):
     """v_i -= dt [sum_j mf (k_i + k_j) grad W_ij + k_i gb_i];  k_total_i += k_i  (gb: density_factor_lambda).
 
-    In place: iteration i reads k of its neighbours and writes v_i, k_total_i only.
+    In place: iteration i reads k of its neighbours and writes v_i, k_total_i only. mf grad W_ij
+    comes from the pair cache when it has a row per particle, else from the positions.
     """
+    cached = pair_grad.shape[0] == x.shape[0]
     bufs = _fluid_buffers(4, nf)
     for c in prange(bufs.shape[0]):
         buf = bufs[c]
         lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
         for i in range(lo, hi):
-            n_f = _gather_xf(i, x, nf, cf, buf)
             ki = k[i]
+            n_f = cf[i]
             for n in range(n_f):
-                j = nf[i, n]
-                buf[C0, n] = ki + k[j]
-            a0, a1, a2 = _weighted_gradient(n_f, buf, C0, h)
-            v[i, 0] -= dt * (mf * a0 + ki * gb[i, 0])
-            v[i, 1] -= dt * (mf * a1 + ki * gb[i, 1])
-            v[i, 2] -= dt * (mf * a2 + ki * gb[i, 2])
+                buf[C0, n] = ki + k[nf[i, n]]
+            if cached:
+                g = pair_grad[i]
+                a0 = 0.0
+                a1 = 0.0
+                a2 = 0.0
+                for n in range(n_f):
+                    s = buf[C0, n]
+                    a0 += s * g[0, n]
+                    a1 += s * g[1, n]
+                    a2 += s * g[2, n]
+            else:
+                _gather_xf(i, x, nf, cf, buf)
+                a0, a1, a2 = _weighted_gradient(n_f, buf, C0, h)
+                a0 *= mf
+                a1 *= mf
+                a2 *= mf
+            v[i, 0] -= dt * (a0 + ki * gb[i, 0])
+            v[i, 1] -= dt * (a1 + ki * gb[i, 1])
+            v[i, 2] -= dt * (a2 + ki * gb[i, 2])
             k_total[i] += ki
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)
-def xsph(x, v, mf, rho, gb, lam, nf, cf, h, zeta, nu_dt, v_out, drho, disp):
+def xsph(x, v, mf, rho, gb, lam, nf, cf, h, zeta, nu_dt, v_out, drho, disp, pair_grad):
     """The viscosity pass: XSPH filter [SB12] and SPlisHSPlasH's "Standard" viscosity, explicit:
 
         v_i <- v_i - zeta sum_j (mf / rho_j) (v_i - v_j) W_ij
@@ -248,9 +291,12 @@ def xsph(x, v, mf, rho, gb, lam, nf, cf, h, zeta, nu_dt, v_out, drho, disp):
                  density_factor_lambda): PF's divergence error, IPSPH's divergence warm-start mask;
         disp_i = sum_j mf (lam_i + lam_j) grad W_ij + lam_i gb_i, only if disp has n rows
                  (else it is skipped): rho0 times the PF displacement of the multipliers lam
-                 (pf_global's d_k), IPSPH's next projection warm start.
+                 (pf_global's d_k), IPSPH's next projection warm start;
+        pair_grad[i, :, k] = mf grad W_ij, only if pair_grad has n rows: the pair cache for
+                 IPSPH's divergence solve, which runs at these positions.
     """
     with_disp = disp.shape[0] == x.shape[0]
+    fill = pair_grad.shape[0] == x.shape[0]
     eps = 0.01 * h * h
     standard = nu_dt > 0.0
     bufs = _fluid_buffers(9, nf)
@@ -294,6 +340,11 @@ def xsph(x, v, mf, rho, gb, lam, nf, cf, h, zeta, nu_dt, v_out, drho, disp):
                     s0 += sv * d0
                     s1 += sv * d1
                     s2 += sv * d2
+                if fill:  # loop-invariant, as `standard`
+                    gm = mf * g
+                    pair_grad[i, 0, k] = gm * d0
+                    pair_grad[i, 1, k] = gm * d1
+                    pair_grad[i, 2, k] = gm * d2
                 gl = buf[C5, k] * g
                 p0 += gl * d0
                 p1 += gl * d1
