@@ -15,8 +15,10 @@ from __future__ import annotations
 import numpy as np
 
 from .base import Method, StepReport
-from .sph_passes import (NO_DISPLACEMENT, NO_PAIR_CACHE, apply_stiffness, density_factor_lambda,
-                         density_residual, divergence_residual, mean, xsph)
+from .sph_passes import (NO_DISPLACEMENT, NO_PAIR_CACHE, accelerate, apply_stiffness, density_factor_lambda,
+                         density_residual, divergence_residual, mean, warm_stiffness, xsph)
+
+EVERY_PARTICLE = np.zeros(0)  # warm_stiffness(..., rate=EVERY_PARTICLE): no mask
 
 
 def divergence_solve(method: Method, dt: float, k_total: np.ndarray,
@@ -42,11 +44,9 @@ def divergence_solve(method: Method, dt: float, k_total: np.ndarray,
     if method.dt_prev is not None:
         if rate is None:
             divergence_residual(x, v, m, gb, nf, cf, pg, h, method.alpha, method.n_nbrs, dt, drho, k)
-            positive = drho > 0.0
-        else:
-            positive = (rate > 0.0) & (method.n_nbrs >= 20)
-        warm = np.where(positive, 0.5 * np.minimum(k_total * (method.dt_prev / dt), 0.5), 0.0)
-        k_total[:] = 0.0
+            rate = drho  # already 0 below 20 neighbours
+        warm = np.empty_like(k_total)
+        warm_stiffness(k_total, method.dt_prev / dt, rate, method.n_nbrs, 20, warm)
         apply_stiffness(x, m, gb, nf, cf, pg, h, warm, dt, v, k_total)
     else:
         k_total[:] = 0.0
@@ -92,7 +92,7 @@ class DFSPH(Method):
                 rep.divergence_iterations, rep.divergence_error, maxed = divergence_solve(self, dt, st.k_div)
                 rep.solver_maxed += maxed
         with self.timer("xsph"):
-            st.v += dt * self.g
+            accelerate(st.v, dt, self.g)
             # (lam is not read without a displacement)
             xsph(st.x, st.v, self.mf, self.rho, self.gb, self.lam, nf, cf, self.h, self.scene.viscosity,
                  self.scene.standard_viscosity * dt, self.scratch_v, self.drho, NO_DISPLACEMENT, NO_PAIR_CACHE)
@@ -117,8 +117,8 @@ class DFSPH(Method):
         k_total = st.k_dens
         density_residual(x, v, m, gb, nf, cf, pg, h, self.rho, self.alpha, self.rho0, dt, self.err, k)
         if self.dt_prev is not None:
-            warm = 0.5 * np.minimum(k_total * (self.dt_prev / dt) ** 2, 0.5)
-            k_total[:] = 0.0
+            warm = np.empty_like(k_total)
+            warm_stiffness(k_total, (self.dt_prev / dt) ** 2, EVERY_PARTICLE, self.n_nbrs, 0, warm)
             apply_stiffness(x, m, gb, nf, cf, pg, h, warm, dt, v, k_total)
             density_residual(x, v, m, gb, nf, cf, pg, h, self.rho, self.alpha, self.rho0, dt, self.err, k)
         else:

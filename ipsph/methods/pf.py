@@ -14,7 +14,8 @@ import numpy as np
 
 from .base import Method, StepReport
 from .pf_passes import pf_global
-from .sph_passes import NO_DISPLACEMENT, NO_PAIR_CACHE, density_factor_lambda, mean, xsph
+from .sph_passes import (NO_DISPLACEMENT, NO_PAIR_CACHE, advance, density_factor_lambda, displacement_velocity,
+                         mean, xsph)
 
 
 def pd_solve(method: Method, dt: float, min_passes: int, max_passes: int, tol: float,
@@ -85,8 +86,8 @@ class ProjectiveMethod(Method):
     def inertial_target(self, dt: float) -> np.ndarray:
         """s = x + dt v + dt^2 g becomes the current position; returns x^n in the new order."""
         st = self.state
-        x_old = st.x.copy()
-        st.x += dt * st.v + dt * dt * self.g
+        x_old = np.empty_like(st.x)
+        advance(st.x, st.v, dt, self.g, x_old)
         (x_old,) = self.neighbour_search(x_old)
         return x_old
 
@@ -101,7 +102,7 @@ class ProjectiveMethod(Method):
         also fills the pair cache for a solve that follows at these positions (IPSPH's).
         """
         st = self.state
-        st.v[:] = (st.x - x_old) / dt
+        displacement_velocity(st.x, x_old, dt, st.v)
         _, _, nf, cf, _, _ = self.lists()
         xsph(st.x, st.v, self.mf, self.rho, self.gb, st.pd_lambda, nf, cf, self.h, self.scene.viscosity,
              self.scene.standard_viscosity * dt, self.scratch_v, self.drho, disp,
