@@ -50,6 +50,8 @@ def test_worker_returns_sane_json(tiny_run):
     # the solver's arrays: 3 x 3 float64 state (72 B) + neighbour lists (>= 64 int32 = 256 B) at least,
     # and nowhere near 100 KB per particle
     assert 300 < r["bytes_per_particle_solver"] < 100_000
+    # the pair cache is part of them: IPSPH keeps it on this small scene (within its 64 MiB)
+    assert 0 < r["bytes_per_particle_pair_cache"] < r["bytes_per_particle_solver"]
     assert r["load"] is not None and 0 <= r["load"]["others_busy_mean"] <= 1
 
 
@@ -157,10 +159,11 @@ def test_table1_has_the_paper_columns():
 
 def test_scaling_table_reports_per_particle_costs():
     row = report.normalise({**_ours(50.0, 1.0, fluid=100_000), "us_per_particle_step": 0.5,
-                            "bytes_per_particle_rss": 1200.0, "bytes_per_particle_solver": 900.0},
+                            "bytes_per_particle_rss": 1200.0, "bytes_per_particle_solver": 900.0,
+                            "bytes_per_particle_pair_cache": 321.0},
                            "ours", "ipsph", "scaling")
     text = report.scaling_table([row], markdown=False, max_load=0.5)
-    assert "100,000" in text and "0.500" in text and "1200" in text and "900" in text
+    assert "100,000" in text and "0.500" in text and "1200" in text and "900" in text and "321" in text
 
 
 # -- scenes ------------------------------------------------------------------------------------------

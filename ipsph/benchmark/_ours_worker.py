@@ -20,7 +20,9 @@ Timing rules (docs/performance.md):
   largest single-particle error of any step. Step 1 is included here (it is physics, not timing).
 * ``bytes_per_particle_rss``: (peak RSS - RSS before sampling) / fluid particles (includes the
   sampler's temporaries); ``bytes_per_particle_solver``: the solver's own arrays (particle state,
-  neighbour lists and grid, boundary, method scratch) / fluid particles.
+  neighbour lists and grid, boundary, method scratch) / fluid particles;
+  ``bytes_per_particle_pair_cache``: the part of it held by the pressure solves' pair cache
+  (``solver.pair_cache_mb``; 0 where it does not fit).
 
 ``--steps S --warmup W`` (the scaling sweep) runs W + S CFL steps with ``Simulation.step`` instead of
 running to an end time; the per-step statistics then cover the last S steps only.
@@ -193,6 +195,7 @@ def measure(scene_path: str, method: str, end_time: float | None, overrides: lis
         "baseline_rss_mb": rss0 / 2**20,
         "bytes_per_particle_rss": (peak - rss0) / n if n else math.nan,
         "bytes_per_particle_solver": solver_b / n if n else math.nan,
+        "bytes_per_particle_pair_cache": sim.method.pair_cache_nbytes / n if n else math.nan,
         "solver_mb": solver_b / 2**20,
     }
 

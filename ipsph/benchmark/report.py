@@ -22,7 +22,7 @@ PHASE_SHORT = OrderedDict([("neighbourSearch", "nbr"), ("densities", "rho"), ("s
                            ("xsph", "xsph"), ("divergenceSolve", "div"), ("densitySolve", "dens")])
 NUMERIC = ("fluid", "boundary", "steps", "ms_step", "ms_step_mean", "wall_per_sim", "wall_seconds", "err_mean",
            "err_worst", "err_max", "rss_mb", "others_cores", "loadavg", "first_step_s", "setup_s", "iters_mean",
-           "us_particle_step", "bytes_rss", "bytes_solver")
+           "us_particle_step", "bytes_rss", "bytes_solver", "bytes_pair_cache")
 
 
 def _f(x) -> float:
@@ -60,6 +60,7 @@ def normalise(result: dict, source: str, method: str, scene: str, repeat: int = 
                    us_particle_step=_f(result.get("us_per_particle_step")),
                    bytes_rss=_f(result.get("bytes_per_particle_rss")),
                    bytes_solver=_f(result.get("bytes_per_particle_solver")),
+                   bytes_pair_cache=_f(result.get("bytes_per_particle_pair_cache")),
                    iters_mean=_f(result.get("pd_passes_mean") if method != "dfsph"
                                  else result.get("density_iterations_mean")))
     else:
@@ -226,7 +227,8 @@ def _round_ratios(ours: list[dict], peer: list[dict]) -> str:
 
 
 SCALING_HEADERS = ["method", "fluid", "boundary", "timed steps", "ms/step (median)", "us / fluid particle-step",
-                   "bytes / particle (RSS)", "bytes / particle (solver arrays)", "peak RSS MB", "setup s",
+                   "bytes / particle (RSS)", "bytes / particle (solver arrays)", "of which pair cache",
+                   "peak RSS MB", "setup s",
                    "load (others' cores)"]
 
 
@@ -241,6 +243,7 @@ def scaling_table(rows: list[dict], markdown: bool, max_load: float) -> str:
         body.append([label, _int(r.get("fluid")), _int(r.get("boundary")), _int(r.get("timed_steps")),
                      _num(r.get("ms_step")), _num(r.get("us_particle_step"), "{:.3f}"),
                      _num(r.get("bytes_rss"), "{:.0f}"), _num(r.get("bytes_solver"), "{:.0f}"),
+                     _num(r.get("bytes_pair_cache"), "{:.0f}"),
                      _num(r.get("rss_mb"), "{:.0f}"), _num(r.get("setup_s"), "{:.1f}"), _num(r.get("others_cores"))])
     return format_table(SCALING_HEADERS, body, markdown)
 

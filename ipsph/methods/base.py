@@ -108,6 +108,11 @@ class Method:
         self.pair_grad = self._pair_store
         return self.pair_grad
 
+    @property
+    def pair_cache_nbytes(self) -> int:
+        """Memory held by the pair cache (0 when it is off or over its budget)."""
+        return self._pair_store.nbytes
+
     def density_errors(self) -> tuple[float, float]:
         """(mean positive, max) density error of the last `density_factor_lambda` evaluation."""
         return mean(self.err), (float(self.rho.max()) / self.rho0 - 1.0) if len(self.rho) else 0.0
