@@ -24,7 +24,7 @@ from ..kernels import grad_w_factor, w
 FAST = {"contract", "arcp", "reassoc"}  # no nnan/ninf: NaN checks keep working
 
 # buffer rows (per thread): x_ij components, then per-neighbour scalars
-DX, DY, DZ, C0, C1, C2, C3, C4, C5, C6 = 0, 1, 2, 3, 4, 5, 6, 7, 8, 9
+DX, DY, DZ, C0, C1, C2, C3, C4, C5 = 0, 1, 2, 3, 4, 5, 6, 7, 8
 
 
 CHUNKS = 64  # blocks of particles per pass, each with its own scratch buffer
