@@ -27,12 +27,20 @@ def tiny_run():
     return run_ours("default", "ipsph", 0.02, 1)
 
 
+def test_worker_steps_freely_without_a_frame_grid():
+    # the worker writes no frames, so it must not shorten steps to land on them: at 1000 fps a
+    # frame-landing run takes at least one step per ms (>= 20 to 0.02 s); dt_max = 4 ms allows 5
+    r = run_ours("default", "ipsph", 0.02, 1, ["output.fps=1000"])
+    assert math.isclose(r["sim_time"], 0.02, rel_tol=1e-9)  # the end time itself is landed on
+    assert r["steps"] < 10, f"{r['steps']} steps: the worker landed on the scene's frame times"
+
+
 def test_worker_returns_sane_json(tiny_run):
     r = tiny_run
     assert r["fluid_particles"] == 3724  # 14 x 19 x 14, documented in ipsph/scenes/default.toml
     assert r["boundary_particles"] > 0
     assert r["method"] == "ipsph" and r["threads"] == 1
-    assert math.isclose(r["sim_time"], 0.02, rel_tol=1e-9)  # frames/end land exactly
+    assert math.isclose(r["sim_time"], 0.02, rel_tol=1e-9)  # the end time lands exactly
     # dt_max = 4 ms at r = 0.02: at least 5 steps to 0.02 s, so at least 4 timed ones
     assert r["steps"] >= 5 and r["timed_steps"] == r["steps"] - 1
     assert r["ms_per_step_median"] > 0 and r["wall_seconds"] > 0 and r["first_step_seconds"] > 0

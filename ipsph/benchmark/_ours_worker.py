@@ -130,7 +130,9 @@ def measure(scene_path: str, method: str, end_time: float | None, overrides: lis
 
     t_loop = time.perf_counter()
     if steps is None:
-        sim.run(end_time, on_step=collect)
+        # no output, so no frame grid to land on: step freely to the end time (as SPlisHSPlasH
+        # does; `ipsph run` shortens the steps before each frame to land on it exactly)
+        sim.advance_to(scene.end_time, collect)
     else:
         for _ in range(warmup + steps):
             collect(sim.step())
