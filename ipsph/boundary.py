@@ -14,7 +14,7 @@ import numpy as np
 from numba import njit, prange
 
 from .kernels import w
-from .neighbours import NO_MASK, Grid, cell_ids, counting_sort, gather_neighbours
+from .neighbours import Grid, cell_ids, counting_sort, gather_neighbours
 
 
 @njit(parallel=True, cache=True)
@@ -62,7 +62,7 @@ class Boundary:
             nbr = np.zeros((n, k), dtype=np.int32)
             cnt = np.zeros(n, dtype=np.int32)
             most = gather_neighbours(xs, xs, start, grid.origin, grid.inv_cell, grid.dims, self.h, True, False,
-                                     NO_MASK, nbr, cnt)
+                                     nbr, cnt)
             if most <= k:
                 break
             k = int(most + 16)

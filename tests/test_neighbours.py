@@ -47,10 +47,21 @@ def test_fluid_far_from_walls_skips_the_wall_search_and_misses_nothing():
     cells = np.empty(len(xs), dtype=np.int64)
     from ipsph.neighbours import cell_ids
     cell_ids(xs, g.origin, g.inv_cell, g.dims, cells)
-    skipped = search.boundary_near[cells] == 0
+    skipped = np.diff(search.wall_start)[cells] == 0  # cells without wall candidates
     assert skipped.mean() > 0.5                      # the mask does skip most of the column
     assert np.all(nl.boundary_count[skipped] == 0)   # and only particles without wall neighbours
     assert np.any((nl.boundary_count == 0) & ~skipped)  # the mask is conservative near its edge
+    # each cell's candidates: ascending, and every wall point within h of some point of the cell
+    start, cand = search.wall_start, search.wall_cand
+    for c in np.unique(cells[~skipped]):
+        got = cand[start[c]:start[c + 1]]
+        assert np.all(np.diff(got) > 0)
+        idx = np.array(np.unravel_index(c, g.dims[::-1])[::-1])
+        lo = g.origin + idx * g.cell
+        gap = np.maximum(np.maximum(lo - search.boundary.x, search.boundary.x - (lo + g.cell)), 0.0)
+        d2 = np.sum(gap * gap, axis=1)
+        assert set(np.flatnonzero(d2 < (h * (1 - 1e-6)) ** 2)) <= set(got)  # none missing
+        assert set(got) <= set(np.flatnonzero(d2 < (h * (1 + 1e-6)) ** 2))  # none far beyond
 
 
 def test_strict_radius_and_self_excluded():
