@@ -123,6 +123,15 @@ def counting_sort(cells, n_cells: int, order) -> np.ndarray:
     return cell_start
 
 
+@njit(inline="always")
+def _largest(cnt):
+    """The largest list length, so the caller can see a stride overflow and rebuild."""
+    best = 0
+    for i in range(cnt.shape[0]):
+        best = max(best, cnt[i])
+    return best
+
+
 @njit(parallel=True, cache=True)
 def gather_neighbours(xq, xs, cell_start, origin, inv_cell, dims, radius, same_set, upper, idx, cnt):
     """For each query point i, the indices j of points xs with |xq_i - xs_j| < radius.
@@ -178,10 +187,7 @@ def gather_neighbours(xq, xs, cell_start, origin, inv_cell, dims, radius, same_s
                         hit = hit & (j != i)
                     n += np.int64(hit)
         cnt[i] = n
-    best = 0
-    for i in range(xq.shape[0]):
-        best = max(best, cnt[i])
-    return best
+    return _largest(cnt)
 
 
 @njit(cache=True)
@@ -282,10 +288,7 @@ def gather_walls(xq, xs, start, cand, origin, inv_cell, dims, radius, idx, cnt):
             row_i[min(n, k_max - 1)] = j  # branch-free append, as in gather_neighbours
             n += np.int64(d0 * d0 + d1 * d1 + d2 * d2 < r2)
         cnt[i] = n
-    best = 0
-    for i in range(xq.shape[0]):
-        best = max(best, cnt[i])
-    return best
+    return _largest(cnt)
 
 
 @njit(cache=True)
@@ -305,10 +308,7 @@ def append_lower(idx, cnt):
             c = cnt[j]
             idx[j, min(c, k_max - 1)] = i
             cnt[j] = c + 1
-    best = 0
-    for i in range(cnt.shape[0]):
-        best = max(best, cnt[i])
-    return best
+    return _largest(cnt)
 
 
 def brute_force_neighbours(xq, xs, radius, same_set):
