@@ -64,15 +64,23 @@ class Grid:
         return bool(np.all(lo >= self.origin) and np.all(hi < top))
 
 
+@njit(inline="always")
+def _cell_of(p0, p1, p2, origin, inv_cell, dims):
+    """The cell (cx, cy, cz) of a point, clamped to the grid: the one binning rule that the sort,
+    the row walk and the walls' per-cell candidates all share."""
+    cx = min(max(int((p0 - origin[0]) * inv_cell[0]), 0), dims[0] - 1)
+    cy = min(max(int((p1 - origin[1]) * inv_cell[1]), 0), dims[1] - 1)
+    cz = min(max(int((p2 - origin[2]) * inv_cell[2]), 0), dims[2] - 1)
+    return cx, cy, cz
+
+
 @njit(cache=True)
 def cell_ids(x, origin, inv_cell, dims, out):
     """Linear cell index (x fastest) of every point; points outside are clamped to the edge.
     `inv_cell`: 1 / cell size per axis."""
-    nx, ny, nz = dims[0], dims[1], dims[2]
+    nx, ny = dims[0], dims[1]
     for i in range(x.shape[0]):
-        cx = min(max(int((x[i, 0] - origin[0]) * inv_cell[0]), 0), nx - 1)
-        cy = min(max(int((x[i, 1] - origin[1]) * inv_cell[1]), 0), ny - 1)
-        cz = min(max(int((x[i, 2] - origin[2]) * inv_cell[2]), 0), nz - 1)
+        cx, cy, cz = _cell_of(x[i, 0], x[i, 1], x[i, 2], origin, inv_cell, dims)
         out[i] = (cz * ny + cy) * nx + cx
 
 
@@ -154,8 +162,7 @@ def gather_neighbours(xq, xs, cell_start, origin, inv_cell, dims, radius, same_s
         xi0 = xq[i, 0]
         xi1 = xq[i, 1]
         xi2 = xq[i, 2]
-        cy = min(max(int((xi1 - origin[1]) * inv_cell[1]), 0), ny - 1)
-        cz = min(max(int((xi2 - origin[2]) * inv_cell[2]), 0), nz - 1)
+        _, cy, cz = _cell_of(xi0, xi1, xi2, origin, inv_cell, dims)
         n = 0
         row_i = idx[i]
         for z in range(cz if upper else max(cz - reach_z, 0), min(cz + reach_z, nz - 1) + 1):
@@ -267,16 +274,14 @@ def wall_candidates(xs, cell_start, grid: "Grid", radius: float, near) -> tuple[
 def gather_walls(xq, xs, start, cand, origin, inv_cell, dims, radius, idx, cnt):
     """gather_neighbours for static walls from their per-cell candidates (`wall_candidates`):
     the same lists, one contiguous candidate range per query point instead of a row walk."""
-    nx, ny, nz = dims[0], dims[1], dims[2]
+    nx, ny = dims[0], dims[1]
     k_max = idx.shape[1]
     r2 = radius * radius
     for i in prange(xq.shape[0]):
         xi0 = xq[i, 0]
         xi1 = xq[i, 1]
         xi2 = xq[i, 2]
-        cx = min(max(int((xi0 - origin[0]) * inv_cell[0]), 0), nx - 1)
-        cy = min(max(int((xi1 - origin[1]) * inv_cell[1]), 0), ny - 1)
-        cz = min(max(int((xi2 - origin[2]) * inv_cell[2]), 0), nz - 1)
+        cx, cy, cz = _cell_of(xi0, xi1, xi2, origin, inv_cell, dims)
         c = (cz * ny + cy) * nx + cx
         row_i = idx[i]
         n = 0
