@@ -8,12 +8,13 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from ipsph.benchmark import report
 from ipsph.benchmark.ours import run_ours
-from ipsph.benchmark.scenes import (PIPELINES, pipeline_path, resolve_scene, scaling_count,
-                                    scaling_overrides)
+from ipsph.benchmark.scenes import (PIPELINES, pipeline_path, resolve_scene, scaling_count, scaling_dt_max,
+                                    scaling_overrides, scaling_peer_scene)
 from ipsph.cli import main as cli_main
 from ipsph.errors import ConfigError
 
@@ -174,6 +175,18 @@ def test_scaling_table_reports_per_particle_costs():
     assert "100,000" in text and "0.500" in text and "1200" in text and "900" in text and "321" in text
 
 
+def test_scaling_table_gives_iterations_and_error_for_ours_and_the_peer():
+    """The per-particle cost depends on how many solver iterations a step took: both sides show them."""
+    ours = report.normalise({**_ours(50.0, 1.0, err=0.00002, fluid=100_000), "pd_passes_mean": 2.0,
+                             "divergence_iterations_mean": 1.5}, "ours", "ipsph", "scaling")
+    peer = report.normalise({**_peer(400.0, 9.0), "fluid_particles": 100_000, "iterations_mean": 26.1,
+                             "divergence_iterations_mean": 4.5}, "peer", "dfsph", "scaling")
+    lines = report.scaling_table([ours, peer], markdown=True, max_load=0.5).splitlines()
+    assert "| iterations (pressure / divergence) | density err mean % |" in lines[0]
+    assert "| 2.0 / 1.5 | 0.0000 |" in lines[2]
+    assert "| 4.000 | 26.1 / 4.5 | 0.0600 |" in lines[3]  # 400 ms / 100k particles
+
+
 # -- scenes ------------------------------------------------------------------------------------------
 def test_scaling_overrides_give_the_target_count():
     from ipsph import sampling
@@ -185,6 +198,39 @@ def test_scaling_overrides_give_the_target_count():
         assert abs(count - n) / n < 0.02  # lattice rounding: within 2 % of the asked size
     with pytest.raises(ConfigError):
         scaling_overrides(3)
+
+
+def test_scaling_peer_scene_is_the_same_dam_break(tmp_path):
+    """SPlisHSPlasH's copy of the scaling dam break: same column (so the same count by the shared
+    FluidBlock rule), same tank as a closed, outward-wound box mesh, same radius and maximum step."""
+    import json
+
+    import meshio
+
+    from ipsph.scene import default_scene_path, lattice_counts, load_scene
+    n = 100_000
+    path = scaling_peer_scene(n, tmp_path)
+    doc = json.loads(path.read_text())
+    ours = load_scene(default_scene_path(), scaling_overrides(n))
+    conf = doc["Configuration"]
+    assert conf["particleRadius"] == ours.particle_radius == 0.025
+    assert conf["cflMaxTimeStepSize"] == scaling_dt_max() == ours.time_step.resolved_dt_max(0.025) == 0.005
+    assert conf["boundaryHandlingMethod"] == 0 and conf["simulationMethod"] == 4  # Akinci walls, DFSPH
+    (block,) = doc["FluidBlocks"]
+    fluid, tank = ours.fluids[0], ours.boundaries[0]
+    assert np.allclose(block["start"], fluid.box_min) and np.allclose(block["end"], fluid.box_max)
+    assert np.prod(lattice_counts(block["start"], block["end"], conf["particleRadius"])) == scaling_count(n)
+    (body,) = doc["RigidBodies"]
+    assert body["isWall"] and not body["isDynamic"]
+    mesh = meshio.read(body["geometryFile"])
+    tri = mesh.cells_dict["triangle"]
+    pts = mesh.points * np.asarray(body["scale"]) + np.asarray(body["translation"])
+    assert np.allclose(pts.min(axis=0), tank.box_min) and np.allclose(pts.max(axis=0), tank.box_max)
+    a, b, c = pts[tri[:, 0]], pts[tri[:, 1]], pts[tri[:, 2]]
+    volume = np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0  # > 0 only if every face winds outwards
+    assert volume == pytest.approx(np.prod(np.subtract(tank.box_max, tank.box_min)), rel=1e-12)
+    edges = np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1)
+    assert (np.unique(edges, axis=0, return_counts=True)[1] == 2).all()  # closed: every edge in two faces
 
 
 @pytest.mark.skipif(not STOCK.is_dir(), reason="SPlisHSPlasH stock scenes not in this checkout")

@@ -195,6 +195,22 @@ def test_peer_short_double_dam_break(method):
     assert r["load"]["samples"] >= 1 and 0.0 <= r["load"]["cpu_busy_mean"] <= 1.0
 
 
+def test_peer_runs_the_scaling_dam_break(tmp_path):
+    """`ipsph bench --scaling`'s SPlisHSPlasH rows: its copy of our dam break holds our fluid count
+    (the shared FluidBlocks rule), Akinci walls, and takes its 5 ms maximum step from rest."""
+    _require_peer()
+    from ipsph.benchmark.peer import run_peer
+    from ipsph.benchmark.scenes import scaling_count, scaling_peer_scene
+
+    n = 3000
+    r = run_peer(scaling_peer_scene(n, tmp_path), "dfsph", 4 * 0.005 * (1 + 1e-6), threads=2, timeout=600)
+    assert r["fluid_particles"] == scaling_count(n)
+    assert r["boundary_handling_method"] == 0 and r["boundary_particles"] > 1000
+    assert r["steps"] in (4, 5) and r["dt_max"] == pytest.approx(0.005)
+    (x0, y0, z0), (x1, y1, z1) = r["fluid_bbox_end"]
+    assert min(x0, y0, z0) > 0.0  # still inside the tank's corner where the column stands
+
+
 def test_peer_failure_raises_with_stderr_tail(tmp_path):
     _require_peer()
     from ipsph.benchmark.peer import run_peer

@@ -28,7 +28,7 @@ from pathlib import Path
 from ..errors import ConfigError
 from . import report
 from .scenes import (DEFAULT_SCENES, PIPELINES, pipeline_path, resolve_scene, scaling_count,
-                     scaling_overrides)
+                     scaling_dt_max, scaling_overrides, scaling_peer_scene)
 
 OUR_METHODS = ("ipsph", "pf", "dfsph")
 PEER_METHODS = ("dfsph", "pf")
@@ -46,7 +46,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--methods", nargs="+", choices=OUR_METHODS, default=list(OUR_METHODS),
                    help="our methods to run (default: ipsph pf dfsph)")
     p.add_argument("--peer", action=argparse.BooleanOptionalAction, default=None,
-                   help="also run SPlisHSPlasH's DFSPH and PF (default: when pysplishsplash imports)")
+                   help="also run SPlisHSPlasH's DFSPH and PF (with --scaling: its DFSPH on the same dam breaks; "
+                        "default: when pysplishsplash imports)")
     p.add_argument("--end-time", type=float, default=1.0, metavar="T", help="simulated seconds per run (default 1.0)")
     p.add_argument("--repeats", type=int, default=3, metavar="R", help="interleaved repeats (default 3)")
     p.add_argument("--threads", type=int, default=2, metavar="N", help="threads for every method (default 2)")
@@ -202,29 +203,53 @@ def bench_table1(args, peer: bool) -> tuple[str, list[dict]]:
     return report.table1(groups, args.markdown), rows
 
 
-def bench_scaling(args) -> tuple[str, list[dict]]:
+def bench_scaling(args, peer: bool) -> tuple[str, list[dict]]:
+    """Each size: our methods, then (with `peer`) SPlisHSPlasH's DFSPH on the same dam break
+    (`scaling_peer_scene`) for as many steps, at its maximum step size, as ours take."""
     from .ours import run_ours
+    from .peer import run_peer
     sizes = args.scaling or [10_000, 100_000, 1_000_000]
     rows = []
-    for n in sizes:
-        over = scaling_overrides(n) + list(args.set)
-        for m in args.scaling_methods:
-            t0 = time.perf_counter()
-            _log(f"scaling: {m} ~{scaling_count(n):,} fluid particles ...")
-            try:
-                res = run_ours("default", m, None, args.threads, over, steps=args.scaling_steps, warmup=2,
-                               timeout=args.timeout)
-                row = report.normalise(res, "ours", m, "scaling", 0)
-                row.update(timed_steps=res.get("timed_steps"), raw=res)
-            except (RuntimeError, ConfigError, OSError) as exc:
-                row = {"label": report.LABELS[("ours", m)], "method": m, "error": str(exc)}
-            row.update(target=n, elapsed_s=time.perf_counter() - t0)
-            rows.append(row)
-            if row.get("error"):
-                _log("  FAILED: " + row["error"].splitlines()[0])
-            else:
-                _log(f"  {row['elapsed_s']:.1f} s: {row['ms_step']:.1f} ms/step, "
-                     f"{row['us_particle_step']:.3f} us/particle-step, others {row['others_cores']:.2f} cores")
+
+    def record(row: dict, n: int, t0: float) -> None:
+        row.update(target=n, elapsed_s=time.perf_counter() - t0)
+        rows.append(row)
+        if row.get("error"):
+            _log("  FAILED: " + row["error"].splitlines()[0])
+        else:
+            _log(f"  {row['elapsed_s']:.1f} s: {row['ms_step']:.1f} ms/step, "
+                 f"{row['us_particle_step']:.3f} us/particle-step, others {row['others_cores']:.2f} cores")
+
+    with tempfile.TemporaryDirectory(prefix="ipsph-scaling-") as tmp:
+        for n in sizes:
+            over = scaling_overrides(n) + list(args.set)
+            for m in args.scaling_methods:
+                t0 = time.perf_counter()
+                _log(f"scaling: {m} ~{scaling_count(n):,} fluid particles ...")
+                try:
+                    res = run_ours("default", m, None, args.threads, over, steps=args.scaling_steps, warmup=2,
+                                   timeout=args.timeout)
+                    row = report.normalise(res, "ours", m, "scaling", 0)
+                    row.update(timed_steps=res.get("timed_steps"), raw=res)
+                except (RuntimeError, ConfigError, OSError) as exc:
+                    row = {"label": report.LABELS[("ours", m)], "method": m, "error": str(exc)}
+                record(row, n, t0)
+            if peer:
+                t0 = time.perf_counter()
+                _log(f"scaling: SPlisHSPlasH dfsph ~{scaling_count(n):,} fluid particles ...")
+                try:
+                    scene = scaling_peer_scene(n, Path(tmp))
+                    # as many steps as ours (2 + S) at its maximum step (the column starts at rest);
+                    # SPlisHSPlasH has no JIT, so its median is over all of them
+                    end = (2 + args.scaling_steps) * scaling_dt_max() * (1.0 + 1e-6)
+                    res = run_peer(scene, "dfsph", end, args.threads, timeout=args.timeout, work_dir=Path(tmp))
+                    row = report.normalise(res, "peer", "dfsph", "scaling", 0)
+                    row.update(timed_steps=res.get("steps"), raw=res)
+                    if row.get("fluid"):
+                        row["bytes_rss"] = row["rss_mb"] * 2**20 / row["fluid"]
+                except (RuntimeError, ConfigError, OSError) as exc:
+                    row = {"label": report.LABELS[("peer", "dfsph")], "method": "dfsph", "error": str(exc)}
+                record(row, n, t0)
     return report.scaling_table(rows, args.markdown, args.max_load), rows
 
 
@@ -315,7 +340,9 @@ def main(args) -> int:
                       else "== render overhead (default scene) ==\n") + overhead_table(summary, args.markdown))
         failed |= not summary["ok"]
     if args.scaling is not None:
-        text, rows = bench_scaling(args)
+        peer, why = _use_peer(args.peer)
+        header += f"; scaling: {why}"
+        text, rows = bench_scaling(args, peer)
         out["scaling"] = rows
         texts.append(("## Scaling (dam break)\n\n" if args.markdown else "== scaling (dam break) ==\n") + text)
         failed |= any(r.get("error") for r in rows)

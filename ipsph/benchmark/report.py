@@ -62,7 +62,8 @@ def normalise(result: dict, source: str, method: str, scene: str, repeat: int = 
                    bytes_solver=_f(result.get("bytes_per_particle_solver")),
                    bytes_pair_cache=_f(result.get("bytes_per_particle_pair_cache")),
                    iters_mean=_f(result.get("pd_passes_mean") if method != "dfsph"
-                                 else result.get("density_iterations_mean")))
+                                 else result.get("density_iterations_mean")),
+                   div_iters_mean=_f(result.get("divergence_iterations_mean")) if method != "pf" else math.nan)
     else:
         # SPlisHSPlasH's Timing gives averages only; they stand in for both median and mean phases
         pressure = "densitySolve" if method == "dfsph" else "solvePDConstraints"
@@ -71,7 +72,8 @@ def normalise(result: dict, source: str, method: str, scene: str, repeat: int = 
         ph = {k: _f(v) for k, v in ph.items() if v is not None}
         row.update(ms_step=_f(result.get("ms_per_step")), ms_step_mean=_f(result.get("ms_per_step_mean")),
                    phases=ph, phases_mean=dict(ph), first_step_s=math.nan, setup_s=_f(result.get("init_seconds")),
-                   iters_mean=_f(result.get("iterations_mean")))
+                   iters_mean=_f(result.get("iterations_mean")),
+                   div_iters_mean=_f(result.get("divergence_iterations_mean")) if method == "dfsph" else math.nan)
         if row["fluid"]:
             row["us_particle_step"] = 1e3 * row["ms_step"] / row["fluid"]
     return row
@@ -227,6 +229,7 @@ def _round_ratios(ours: list[dict], peer: list[dict]) -> str:
 
 
 SCALING_HEADERS = ["method", "fluid", "boundary", "timed steps", "ms/step (median)", "us / fluid particle-step",
+                   "iterations (pressure / divergence)", "density err mean %",
                    "bytes / particle (RSS)", "bytes / particle (solver arrays)", "of which pair cache",
                    "peak RSS MB", "setup s",
                    "load (others' cores)"]
@@ -242,6 +245,8 @@ def scaling_table(rows: list[dict], markdown: bool, max_load: float) -> str:
         label = r["label"] + (" [loaded]" if is_loaded(r, max_load) else "")
         body.append([label, _int(r.get("fluid")), _int(r.get("boundary")), _int(r.get("timed_steps")),
                      _num(r.get("ms_step")), _num(r.get("us_particle_step"), "{:.3f}"),
+                     f'{_num(r.get("iters_mean"), "{:.1f}")} / {_num(r.get("div_iters_mean"), "{:.1f}")}',
+                     _num(r.get("err_mean"), "{:.4f}"),
                      _num(r.get("bytes_rss"), "{:.0f}"), _num(r.get("bytes_solver"), "{:.0f}"),
                      _num(r.get("bytes_pair_cache"), "{:.0f}"),
                      _num(r.get("rss_mb"), "{:.0f}"), _num(r.get("setup_s"), "{:.1f}"), _num(r.get("others_cores"))])

@@ -8,18 +8,24 @@
   the same case.
 * The scaling tank is the built-in default scene with overrides: a dam-break column of ~N particles
   at r = 0.025 m in a tank 2.5 columns long (so the count is exact and nothing is written to disk).
+  ``scaling_peer_scene`` writes the same dam break as a SPlisHSPlasH scene for the peer's rows.
 """
 from __future__ import annotations
 
+import json
 import math
 import os
 from pathlib import Path
 
+import numpy as np
+
 from ..errors import ConfigError
+from ..model import TimeStepConfig
 from ..scene import lattice_counts
 
 __all__ = ["DEFAULT_SCENES", "PIPELINES", "find_stock_scene_dir", "resolve_scene", "pipeline_path",
-           "scaling_overrides", "scaling_count"]
+           "scaling_overrides", "scaling_count", "scaling_dt_max",
+           "scaling_peer_scene"]
 
 DEFAULT_SCENES = ("DamBreakModel", "DoubleDamBreak")
 _REPO_ROOT = Path(__file__).resolve().parents[2]
@@ -82,6 +88,13 @@ def _scaling_dims(n_target: int) -> tuple[int, int]:
     return nx, ny
 
 
+def _scaling_extents(n_target: int, radius: float) -> tuple[float, float]:
+    """(ex, ey): the column's box is [0, ex] x [0, ey] x [0, ex], the tank 2.5 ex x 1.25 ey x ex."""
+    d = 2.0 * radius
+    nx, ny = _scaling_dims(n_target)
+    return (nx + 1) * d, (ny + 1) * d
+
+
 def scaling_overrides(n_target: int, radius: float = 0.025) -> list[str]:
     """--set overrides turning the default scene into a dam break with ~n_target fluid particles.
 
@@ -91,9 +104,7 @@ def scaling_overrides(n_target: int, radius: float = 0.025) -> list[str]:
     """
     if not (isinstance(n_target, int) and n_target >= 8):
         raise ConfigError(f"--scaling size {n_target!r} must be an integer >= 8 fluid particles")
-    d = 2.0 * radius
-    nx, ny = _scaling_dims(n_target)
-    ex, ey = (nx + 1) * d, (ny + 1) * d
+    ex, ey = _scaling_extents(n_target, radius)
     vec = lambda *v: "[" + ", ".join(repr(round(x, 9)) for x in v) + "]"  # noqa: E731
     return [f"simulation.particle_radius={radius!r}", "fluid.0.box.min=[0.0, 0.0, 0.0]",
             f"fluid.0.box.max={vec(ex, ey, ex)}", "boundary.0.box.min=[0.0, 0.0, 0.0]",
@@ -102,7 +113,56 @@ def scaling_overrides(n_target: int, radius: float = 0.025) -> list[str]:
 
 def scaling_count(n_target: int, radius: float = 0.025) -> int:
     """The exact fluid count of scaling_overrides(n_target, radius)."""
-    d = 2.0 * radius
-    nx, ny = _scaling_dims(n_target)
-    c = lattice_counts((0, 0, 0), ((nx + 1) * d, (ny + 1) * d, (nx + 1) * d), radius)
+    ex, ey = _scaling_extents(n_target, radius)
+    c = lattice_counts((0, 0, 0), (ex, ey, ex), radius)
     return math.prod(c)
+
+
+# a closed unit cube centred at the origin, faces wound outwards (as SPlisHSPlasH's UnitBox.obj)
+_CUBE_POINTS = np.array([[x, y, z] for z in (-0.5, 0.5) for y in (-0.5, 0.5) for x in (-0.5, 0.5)])
+_CUBE_FACES = np.array([[0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4],
+                        [2, 6, 3], [3, 6, 7], [0, 4, 2], [2, 4, 6], [1, 3, 5], [3, 7, 5]])
+
+
+def scaling_dt_max(radius: float = 0.025) -> float:
+    """The scaling dam break's maximum step: our default for a scene without time_step.dt_max
+    (5 ms * r / 0.025 m, method.md section 1), which the column starting at rest takes."""
+    return TimeStepConfig().resolved_dt_max(radius)
+
+
+def scaling_peer_scene(n_target: int, folder: Path, radius: float = 0.025) -> Path:
+    """Write the scaling dam break as a SPlisHSPlasH scene (and its tank mesh) into `folder`.
+
+    The same column, tank, radius, CFL and maximum step as ``scaling_overrides``: SPlisHSPlasH fills
+    a FluidBlock as we fill a box (round(extent / 2r) - 1 per axis, the first at min + 2r), so the
+    fluid counts match. Its walls are Akinci boundary particles, as ours (boundaryHandlingMethod 0;
+    its stock scenes use volume maps), its viscosity XSPH with our default coefficient, and its
+    DFSPH the stock scenes' tolerances (0.05 % density, 0.1 % divergence).
+    """
+    import meshio
+
+    if not (isinstance(n_target, int) and n_target >= 8):
+        raise ConfigError(f"--scaling size {n_target!r} must be an integer >= 8 fluid particles")
+    folder = Path(folder)
+    ex, ey = _scaling_extents(n_target, radius)
+    tank = (2.5 * ex, 1.25 * ey, ex)
+    mesh = folder / "scaling_tank.obj"
+    meshio.write(mesh, meshio.Mesh(_CUBE_POINTS, [("triangle", _CUBE_FACES)]))
+    dt_max = scaling_dt_max(radius)
+    scene = {
+        "Configuration": {
+            "particleRadius": radius, "simulationMethod": 4, "gravitation": [0.0, -9.81, 0.0],
+            "timeStepSize": dt_max, "cflMethod": 1, "cflFactor": 1.0, "cflMaxTimeStepSize": dt_max,
+            "boundaryHandlingMethod": 0,
+            "DFSPH": {"minIterations": 2, "maxIterations": 100, "maxError": 0.05, "maxIterationsV": 100,
+                      "maxErrorV": 0.1, "enableDivergenceSolver": True}},
+        "Materials": [{"id": "Fluid", "density0": 1000.0, "viscosityMethod": 2, "viscosity": 0.01,
+                       "XSPH viscosity": {"viscosity": 0.01}}],
+        "RigidBodies": [{"geometryFile": str(mesh.resolve()), "translation": [t / 2 for t in tank],
+                         "rotationAxis": [1, 0, 0], "rotationAngle": 0, "scale": list(tank),
+                         "isDynamic": False, "isWall": True}],
+        "FluidBlocks": [{"denseMode": 0, "start": [0.0, 0.0, 0.0], "end": [ex, ey, ex]}],
+    }
+    path = folder / f"scaling_{n_target}.json"
+    path.write_text(json.dumps(scene, indent=1))
+    return path
