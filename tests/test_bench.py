@@ -183,8 +183,8 @@ def test_scaling_table_gives_iterations_and_error_for_ours_and_the_peer():
                              "divergence_iterations_mean": 4.5}, "peer", "dfsph", "scaling")
     lines = report.scaling_table([ours, peer], markdown=True, max_load=0.5).splitlines()
     assert "| iterations (pressure / divergence) | density err mean % |" in lines[0]
-    assert "| 2.0 / 1.5 | 0.0000 |" in lines[2]
-    assert "| 4.000 | 26.1 / 4.5 | 0.0600 |" in lines[3]  # 400 ms / 100k particles
+    assert "| 2.0 / 1.5 | 2e-05 |" in lines[2]
+    assert "| 4.000 | 26.1 / 4.5 | 0.06 |" in lines[3]  # 400 ms / 100k particles
 
 
 # -- scenes ------------------------------------------------------------------------------------------

@@ -246,7 +246,7 @@ def scaling_table(rows: list[dict], markdown: bool, max_load: float) -> str:
         body.append([label, _int(r.get("fluid")), _int(r.get("boundary")), _int(r.get("timed_steps")),
                      _num(r.get("ms_step")), _num(r.get("us_particle_step"), "{:.3f}"),
                      f'{_num(r.get("iters_mean"), "{:.1f}")} / {_num(r.get("div_iters_mean"), "{:.1f}")}',
-                     _num(r.get("err_mean"), "{:.4f}"),
+                     _num(r.get("err_mean"), "{:.2g}"),
                      _num(r.get("bytes_rss"), "{:.0f}"), _num(r.get("bytes_solver"), "{:.0f}"),
                      _num(r.get("bytes_pair_cache"), "{:.0f}"),
                      _num(r.get("rss_mb"), "{:.0f}"), _num(r.get("setup_s"), "{:.1f}"), _num(r.get("others_cores"))])
