@@ -88,15 +88,8 @@ def _scaling_dims(n_target: int) -> tuple[int, int]:
     return nx, ny
 
 
-def _scaling_extents(n_target: int, radius: float) -> tuple[float, float]:
-    """(ex, ey): the column's box is [0, ex] x [0, ey] x [0, ex], the tank 2.5 ex x 1.25 ey x ex."""
-    d = 2.0 * radius
-    nx, ny = _scaling_dims(n_target)
-    return (nx + 1) * d, (ny + 1) * d
-
-
-def scaling_overrides(n_target: int, radius: float = 0.025) -> list[str]:
-    """--set overrides turning the default scene into a dam break with ~n_target fluid particles.
+def _scaling_boxes(n_target: int, radius: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """Upper corners of the column's and the tank's boxes, both from the origin.
 
     A box holds round(extent / 2r) - 1 particles per axis (first one at min + 2r), so an extent of
     (n + 1) * 2r gives exactly n; the tank is 2.5 columns long, 1.25 columns high and as deep as
@@ -104,18 +97,26 @@ def scaling_overrides(n_target: int, radius: float = 0.025) -> list[str]:
     """
     if not (isinstance(n_target, int) and n_target >= 8):
         raise ConfigError(f"--scaling size {n_target!r} must be an integer >= 8 fluid particles")
-    ex, ey = _scaling_extents(n_target, radius)
-    vec = lambda *v: "[" + ", ".join(repr(round(x, 9)) for x in v) + "]"  # noqa: E731
+    d = 2.0 * radius
+    nx, ny = _scaling_dims(n_target)
+    ex, ey = (nx + 1) * d, (ny + 1) * d
+    return (ex, ey, ex), (2.5 * ex, 1.25 * ey, ex)
+
+
+def scaling_overrides(n_target: int, radius: float = 0.025) -> list[str]:
+    """--set overrides turning the default scene into a dam break with ~n_target fluid particles
+    (the column and tank of `_scaling_boxes`)."""
+    column, tank = _scaling_boxes(n_target, radius)
+    vec = lambda v: "[" + ", ".join(repr(round(x, 9)) for x in v) + "]"  # noqa: E731
     return [f"simulation.particle_radius={radius!r}", "fluid.0.box.min=[0.0, 0.0, 0.0]",
-            f"fluid.0.box.max={vec(ex, ey, ex)}", "boundary.0.box.min=[0.0, 0.0, 0.0]",
-            f"boundary.0.box.max={vec(2.5 * ex, 1.25 * ey, ex)}"]
+            f"fluid.0.box.max={vec(column)}", "boundary.0.box.min=[0.0, 0.0, 0.0]",
+            f"boundary.0.box.max={vec(tank)}"]
 
 
 def scaling_count(n_target: int, radius: float = 0.025) -> int:
     """The exact fluid count of scaling_overrides(n_target, radius)."""
-    ex, ey = _scaling_extents(n_target, radius)
-    c = lattice_counts((0, 0, 0), (ex, ey, ex), radius)
-    return math.prod(c)
+    column, _ = _scaling_boxes(n_target, radius)
+    return math.prod(lattice_counts((0, 0, 0), column, radius))
 
 
 # a closed unit cube centred at the origin, faces wound outwards (as SPlisHSPlasH's UnitBox.obj)
@@ -141,11 +142,8 @@ def scaling_peer_scene(n_target: int, folder: Path, radius: float = 0.025) -> Pa
     """
     import meshio
 
-    if not (isinstance(n_target, int) and n_target >= 8):
-        raise ConfigError(f"--scaling size {n_target!r} must be an integer >= 8 fluid particles")
+    column, tank = _scaling_boxes(n_target, radius)
     folder = Path(folder)
-    ex, ey = _scaling_extents(n_target, radius)
-    tank = (2.5 * ex, 1.25 * ey, ex)
     mesh = folder / "scaling_tank.obj"
     meshio.write(mesh, meshio.Mesh(_CUBE_POINTS, [("triangle", _CUBE_FACES)]))
     dt_max = scaling_dt_max(radius)
@@ -161,7 +159,7 @@ def scaling_peer_scene(n_target: int, folder: Path, radius: float = 0.025) -> Pa
         "RigidBodies": [{"geometryFile": str(mesh.resolve()), "translation": [t / 2 for t in tank],
                          "rotationAxis": [1, 0, 0], "rotationAngle": 0, "scale": list(tank),
                          "isDynamic": False, "isWall": True}],
-        "FluidBlocks": [{"denseMode": 0, "start": [0.0, 0.0, 0.0], "end": [ex, ey, ex]}],
+        "FluidBlocks": [{"denseMode": 0, "start": [0.0, 0.0, 0.0], "end": list(column)}],
     }
     path = folder / f"scaling_{n_target}.json"
     path.write_text(json.dumps(scene, indent=1))
