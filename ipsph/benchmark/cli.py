@@ -244,9 +244,8 @@ def bench_scaling(args, peer: bool) -> tuple[str, list[dict]]:
                     end = (2 + args.scaling_steps) * scaling_dt_max() * (1.0 + 1e-6)
                     res = run_peer(scene, "dfsph", end, args.threads, timeout=args.timeout, work_dir=Path(tmp))
                     row = report.normalise(res, "peer", "dfsph", "scaling", 0)
+                    # (no bytes per particle: ours subtract the RSS before sampling; compare peak RSS)
                     row.update(timed_steps=res.get("steps"), raw=res)
-                    if row.get("fluid"):
-                        row["bytes_rss"] = row["rss_mb"] * 2**20 / row["fluid"]
                 except (RuntimeError, ConfigError, OSError) as exc:
                     row = {"label": report.LABELS[("peer", "dfsph")], "method": "dfsph", "error": str(exc)}
                 record(row, n, t0)
