@@ -205,8 +205,7 @@ def test_scaling_peer_scene_is_the_same_dam_break(tmp_path):
     FluidBlock rule), same tank as a closed, outward-wound box mesh, same radius and maximum step."""
     import json
 
-    import meshio
-
+    from ipsph import meshes
     from ipsph.scene import default_scene_path, lattice_counts, load_scene
     n = 100_000
     path = scaling_peer_scene(n, tmp_path)
@@ -215,22 +214,19 @@ def test_scaling_peer_scene_is_the_same_dam_break(tmp_path):
     conf = doc["Configuration"]
     assert conf["particleRadius"] == ours.particle_radius == 0.025
     assert conf["cflMaxTimeStepSize"] == scaling_dt_max() == ours.time_step.resolved_dt_max(0.025) == 0.005
-    assert conf["boundaryHandlingMethod"] == 0 and conf["simulationMethod"] == 4  # Akinci walls, DFSPH
+    assert conf["boundaryHandlingMethod"] == 0  # Akinci walls (the method is run_peer's argument)
     (block,) = doc["FluidBlocks"]
     fluid, tank = ours.fluids[0], ours.boundaries[0]
     assert np.allclose(block["start"], fluid.box_min) and np.allclose(block["end"], fluid.box_max)
     assert np.prod(lattice_counts(block["start"], block["end"], conf["particleRadius"])) == scaling_count(n)
     (body,) = doc["RigidBodies"]
-    assert body["isWall"] and not body["isDynamic"]
-    mesh = meshio.read(body["geometryFile"])
-    tri = mesh.cells_dict["triangle"]
-    pts = mesh.points * np.asarray(body["scale"]) + np.asarray(body["translation"])
-    assert np.allclose(pts.min(axis=0), tank.box_min) and np.allclose(pts.max(axis=0), tank.box_max)
-    a, b, c = pts[tri[:, 0]], pts[tri[:, 1]], pts[tri[:, 2]]
-    volume = np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0  # > 0 only if every face winds outwards
-    assert volume == pytest.approx(np.prod(np.subtract(tank.box_max, tank.box_min)), rel=1e-12)
-    edges = np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1)
-    assert (np.unique(edges, axis=0, return_counts=True)[1] == 2).all()  # closed: every edge in two faces
+    assert body["isWall"] and not body["isDynamic"] and "scale" not in body and "translation" not in body
+    tri = meshes.load_mesh(body["geometryFile"])  # written in place, in world coordinates
+    assert np.allclose(tri.bounds, [0, tank.box_max[0], 0, tank.box_max[1], 0, tank.box_max[2]])
+    assert tuple(tank.box_min) == (0.0, 0.0, 0.0)
+    assert meshes.check_closed(tri) == 0  # closed and consistently wound
+    # > 0 only if every face winds outwards
+    assert meshes.signed_volume(tri) == pytest.approx(np.prod(np.subtract(tank.box_max, tank.box_min)), rel=1e-12)
 
 
 @pytest.mark.skipif(not STOCK.is_dir(), reason="SPlisHSPlasH stock scenes not in this checkout")

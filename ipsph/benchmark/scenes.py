@@ -17,8 +17,6 @@ import math
 import os
 from pathlib import Path
 
-import numpy as np
-
 from ..errors import ConfigError
 from ..model import TimeStepConfig
 from ..scene import lattice_counts
@@ -119,12 +117,6 @@ def scaling_count(n_target: int, radius: float = 0.025) -> int:
     return math.prod(lattice_counts((0, 0, 0), column, radius))
 
 
-# a closed unit cube centred at the origin, faces wound outwards (as SPlisHSPlasH's UnitBox.obj)
-_CUBE_POINTS = np.array([[x, y, z] for z in (-0.5, 0.5) for y in (-0.5, 0.5) for x in (-0.5, 0.5)])
-_CUBE_FACES = np.array([[0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4],
-                        [2, 6, 3], [3, 6, 7], [0, 4, 2], [2, 4, 6], [1, 3, 5], [3, 7, 5]])
-
-
 def scaling_dt_max(radius: float = 0.025) -> float:
     """The scaling dam break's maximum step: our default for a scene without time_step.dt_max
     (5 ms * r / 0.025 m, method.md section 1), which the column starting at rest takes."""
@@ -142,23 +134,24 @@ def scaling_peer_scene(n_target: int, folder: Path, radius: float = 0.025) -> Pa
     """
     import meshio
 
+    from ..meshes import box_mesh, mesh_arrays
+
     column, tank = _scaling_boxes(n_target, radius)
     folder = Path(folder)
-    mesh = folder / "scaling_tank.obj"
-    meshio.write(mesh, meshio.Mesh(_CUBE_POINTS, [("triangle", _CUBE_FACES)]))
+    mesh = folder / "scaling_tank.obj"  # in place: the rigid body needs no transform
+    points, faces = mesh_arrays(box_mesh((0.0, 0.0, 0.0), tank))
+    meshio.write(mesh, meshio.Mesh(points, [("triangle", faces)]))
     dt_max = scaling_dt_max(radius)
     scene = {
         "Configuration": {
-            "particleRadius": radius, "simulationMethod": 4, "gravitation": [0.0, -9.81, 0.0],
+            "particleRadius": radius, "gravitation": [0.0, -9.81, 0.0],  # the method: run_peer's
             "timeStepSize": dt_max, "cflMethod": 1, "cflFactor": 1.0, "cflMaxTimeStepSize": dt_max,
             "boundaryHandlingMethod": 0,
             "DFSPH": {"minIterations": 2, "maxIterations": 100, "maxError": 0.05, "maxIterationsV": 100,
                       "maxErrorV": 0.1, "enableDivergenceSolver": True}},
         "Materials": [{"id": "Fluid", "density0": 1000.0, "viscosityMethod": 2, "viscosity": 0.01,
                        "XSPH viscosity": {"viscosity": 0.01}}],
-        "RigidBodies": [{"geometryFile": str(mesh.resolve()), "translation": [t / 2 for t in tank],
-                         "rotationAxis": [1, 0, 0], "rotationAngle": 0, "scale": list(tank),
-                         "isDynamic": False, "isWall": True}],
+        "RigidBodies": [{"geometryFile": str(mesh.resolve()), "isDynamic": False, "isWall": True}],
         "FluidBlocks": [{"denseMode": 0, "start": [0.0, 0.0, 0.0], "end": list(column)}],
     }
     path = folder / f"scaling_{n_target}.json"
