@@ -71,6 +71,18 @@ class Boundary:
         psi[order] = psi_sorted
         return psi
 
+    def state_dict(self) -> dict[str, np.ndarray]:
+        """Positions, volumes and masses in their current (cell-sorted) order: the volumes were
+        summed in the original order, so a continuation takes them as they are."""
+        return {"x": self.x, "psi": self.psi, "m": self.m}
+
+    def load_state_dict(self, d: dict[str, np.ndarray]) -> None:
+        if len(d["x"]) != len(self.x):
+            raise ValueError(f"saved boundary has {len(d['x'])} particles, this scene {len(self.x)}")
+        self.x = np.ascontiguousarray(d["x"], dtype=np.float64)
+        self.psi = np.ascontiguousarray(d["psi"], dtype=np.float64)
+        self.m = np.ascontiguousarray(d["m"], dtype=np.float64)
+
     def reorder(self, order: np.ndarray) -> None:
         """Follow the neighbour search's boundary sort (new[i] = old[order[i]])."""
         self.x = np.ascontiguousarray(self.x[order])

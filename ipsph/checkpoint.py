@@ -71,20 +71,20 @@ class Checkpoint:
 
 def save(path: Path, sim, *, frames: int, last_frame_time: float | None, solver_maxed: int,
          threads: int) -> None:
-    """Write the state of `sim` (between two steps) to `path` atomically (WriteError on failure)."""
+    """Write `sim.state_dict()` (between two steps) to `path` atomically (WriteError on failure)."""
     from . import __version__
     from .io import atomic_path
-    g = sim.search.grid
-    b = sim.boundary
-    data = {f"state.{k}": v for k, v in sim.state.arrays().items()}
-    data.update({"boundary.x": b.x, "boundary.psi": b.psi, "boundary.m": b.m})
-    if g is not None:
-        data.update({"grid.origin": g.origin, "grid.cell": g.cell, "grid.dims": g.dims})
-    scalars = {"format": FORMAT, "time": sim.time, "steps": sim.steps, "dt_next": sim.dt_next,
-               "dt_prev": sim.method.dt_prev, "clamped_steps": int(sim.clamped_steps),
-               "next_clamped": bool(sim._clamped),
+    sd = sim.state_dict()
+    data = {f"state.{k}": v for k, v in sd["particles"].items()}
+    data.update({f"boundary.{k}": v for k, v in sd["boundary"].items()})
+    search, clock = sd["search"], sd["clock"]
+    if search["grid"] is not None:
+        data.update({f"grid.{k}": v for k, v in search["grid"].items()})
+    scalars = {"format": FORMAT, "time": clock["time"], "steps": clock["steps"], "dt_next": clock["dt_next"],
+               "dt_prev": sd["method"]["dt_prev"], "clamped_steps": clock["clamped_steps"],
+               "next_clamped": clock["next_clamped"],
                "solver_maxed": int(solver_maxed), "frames": int(frames), "last_frame_time": last_frame_time,
-               "threads": int(threads), "k_fluid": sim.search.k_fluid, "k_boundary": sim.search.k_boundary,
+               "threads": int(threads), "k_fluid": search["k_fluid"], "k_boundary": search["k_boundary"],
                "method": sim.scene.method.value}
     # floats go through repr in JSON: exact round trip
     data["scalars"] = np.array(json.dumps(scalars))
@@ -149,46 +149,29 @@ def _differences(a, b, prefix: str = "") -> list[str]:
     return [] if a == b else [prefix or "(root)"]
 
 
+def state_dict(ck: Checkpoint) -> dict:
+    """The checkpoint as `Simulation.state_dict()` wrote it."""
+    a, s = ck.arrays, ck.scalars
+
+    def part(prefix):
+        return {k[len(prefix):]: v for k, v in a.items() if k.startswith(prefix)}
+
+    grid = part("grid.")
+    return {"particles": part("state."), "boundary": part("boundary."),
+            "search": {"k_fluid": s["k_fluid"], "k_boundary": s["k_boundary"], "grid": grid or None},
+            "method": {"dt_prev": s["dt_prev"]},
+            "clock": {"time": s["time"], "steps": s["steps"], "clamped_steps": s["clamped_steps"],
+                      "dt_next": s["dt_next"], "next_clamped": s.get("next_clamped", False)}}
+
+
 def restore(scene: Scene, ck: Checkpoint):
     """A Simulation in exactly the checkpointed state (no sampling)."""
-    from .neighbours import Grid, cell_ids, counting_sort
     from .simulation import Simulation
-    a = ck.arrays
-    state = {k[len("state."):]: v for k, v in a.items() if k.startswith("state.")}
-    sim = Simulation(scene, state["x"], state["v"], a["boundary.x"], fluid_ids=state["id"])
-    # the walls exactly as they were (their volumes were summed in the original order)
-    b = sim.boundary
-    b.x = np.ascontiguousarray(a["boundary.x"])
-    b.psi = np.ascontiguousarray(a["boundary.psi"])
-    b.m = np.ascontiguousarray(a["boundary.m"])
-    search = sim.search
-    s = ck.scalars
-    search.k_fluid, search.k_boundary = int(s["k_fluid"]), int(s["k_boundary"])
-    search.lists = None
-    if "grid.origin" in a:
-        g = Grid.__new__(Grid)
-        g.origin = np.ascontiguousarray(a["grid.origin"], dtype=np.float64)
-        g.cell = np.ascontiguousarray(a["grid.cell"], dtype=np.float64)
-        g.dims = np.ascontiguousarray(a["grid.dims"], dtype=np.int64)
-        search.grid = g
-        # the boundary is already sorted into this grid: the stable sort is the identity
-        cells = np.empty(b.n, dtype=np.int64)
-        cell_ids(b.x, g.origin, g.inv_cell, g.dims, cells)
-        order = np.empty(b.n, dtype=np.int64)
-        search.use_boundary_sort(counting_sort(cells, g.n_cells, order))
-        if not np.array_equal(order, np.arange(b.n)):
-            raise OutputError(f"checkpoint {ck.path} is inconsistent (boundary not sorted into its grid); "
-                              f"start afresh with --overwrite")
-    else:
-        search.grid = None
-    sim.state.load(state)
-    sim.time = float(s["time"])
-    sim.steps = int(s["steps"])
-    sim.clamped_steps = int(s["clamped_steps"])
-    sim.dt_next = float(s["dt_next"])
-    sim._clamped = bool(s.get("next_clamped", False))
-    dt_prev = s["dt_prev"]
-    sim.method.dt_prev = None if dt_prev is None else float(dt_prev)
-    sim.method.prepare()
+    sd = state_dict(ck)
+    p = sd["particles"]
+    sim = Simulation(scene, p["x"], p["v"], sd["boundary"]["x"], fluid_ids=p["id"])
+    try:
+        sim.load_state_dict(sd)
+    except (ValueError, KeyError) as exc:
+        raise OutputError(f"checkpoint {ck.path} is inconsistent ({exc}); start afresh with --overwrite") from exc
     return sim
-

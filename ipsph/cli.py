@@ -11,8 +11,7 @@ from pathlib import Path
 
 from . import __version__
 from .errors import EXIT_INTERRUPTED, IpsphError
-
-METHOD_CHOICES = ("ipsph", "pf", "dfsph")
+from .params import METHOD_NAMES, RENDER_VIEWS
 
 # OpenMP threads that finish a parallel loop sleep instead of spinning (unless the user chose):
 # between the solver's ~20 parallel loops per step the other core is then free for the render
@@ -30,11 +29,14 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--version", action="version", version=f"ipsph {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
 
+    from .scene.reference import key_help
     r = sub.add_parser("run", help="run a scene (TOML, or a SPlisHSPlasH JSON scene) into an output folder",
-                       description="Run a scene. Without SCENE, runs the built-in default dam break.")
+                       description="Run a scene. Without SCENE, runs the built-in default dam break.",
+                       formatter_class=argparse.RawDescriptionHelpFormatter,
+                       epilog="scene keys for --set KEY=VALUE (docs/scene-reference.md):\n" + key_help())
     r.add_argument("scene", nargs="?", type=Path, help="scene file (.toml, or SPlisHSPlasH .json)")
     r.add_argument("-o", "--output", type=Path, help="output folder (default: the scene's output.folder)")
-    r.add_argument("--method", choices=METHOD_CHOICES, help="override simulation.method")
+    r.add_argument("--method", choices=METHOD_NAMES, help="override simulation.method")
     r.add_argument("--end-time", type=float, metavar="T", help="override simulation.end_time [s]")
     g = r.add_mutually_exclusive_group()
     g.add_argument("--fps", type=float, metavar="F", help="frames per simulated second (default 25)")
@@ -56,7 +58,7 @@ def _parser() -> argparse.ArgumentParser:
     rd.add_argument("--speed-range", type=float, nargs=2, metavar=("LO", "HI"),
                     help="colour range in m/s (default: the range the run rendered with, else the "
                          "run's maximum speed)")
-    rd.add_argument("--view", choices=("front", "back", "side", "top", "iso"),
+    rd.add_argument("--view", choices=tuple(RENDER_VIEWS),
                     help="named camera view (replaces a camera stored in the run's scene)")
     rd.add_argument("--size", type=int, nargs=2, metavar=("W", "H"), help="image size in pixels")
 

@@ -2,7 +2,9 @@
 
 `ipsph.scene` turns a TOML file, a dict or a SPlisHSPlasH JSON scene into a `Scene`;
 nothing downstream parses files. Units are SI, y is up. Solver tolerances are in
-percent, as in SPlisHSPlasH (`density_error_pct = 0.05` means 0.05 %).
+percent, as in SPlisHSPlasH (`density_error_pct = 0.05` means 0.05 %). Every default, unit,
+range and description is declared once, in `ipsph.params.PARAMS` (`D(path)` below reads it):
+this module only says where each value lands.
 """
 from __future__ import annotations
 
@@ -10,27 +12,22 @@ from dataclasses import dataclass, field
 from enum import StrEnum
 from pathlib import Path
 
+from .params import BOUNDARY_ROLES, METHOD_NAMES
+from .params import default as D
+
 Vec3 = tuple[float, float, float]
 
-
-class Method(StrEnum):
-    IPSPH = "ipsph"
-    PF = "pf"
-    DFSPH = "dfsph"
-
-
-class Role(StrEnum):
-    CONTAINER = "container"  # fluid lives inside the closed surface
-    OBSTACLE = "obstacle"    # fluid flows around the closed surface
+Method = StrEnum("Method", {name.upper(): name for name in METHOD_NAMES})  # simulation.method
+Role = StrEnum("Role", {name.upper(): name for name in BOUNDARY_ROLES})    # boundary.role
 
 
 @dataclass(frozen=True)
 class Transform:
     """x' = R (S x) + t: scale first, then rotate about `rotate_axis`, then translate."""
-    translate: Vec3 = (0.0, 0.0, 0.0)
-    scale: Vec3 = (1.0, 1.0, 1.0)
-    rotate_axis: Vec3 = (0.0, 1.0, 0.0)
-    rotate_deg: float = 0.0
+    translate: Vec3 = D("fluid.translate")
+    scale: Vec3 = D("fluid.scale")
+    rotate_axis: Vec3 = D("fluid.rotate_axis")
+    rotate_deg: float = D("fluid.rotate_deg")
 
 
 @dataclass(frozen=True)
@@ -42,8 +39,8 @@ class FluidSpec:
     box_max: Vec3 | None = None
     mesh: Path | None = None
     transform: Transform = Transform()
-    velocity: Vec3 = (0.0, 0.0, 0.0)
-    allow_open_mesh: bool = False
+    velocity: Vec3 = D("fluid.velocity")
+    allow_open_mesh: bool = D("fluid.allow_open_mesh")
 
 
 @dataclass(frozen=True)
@@ -51,7 +48,7 @@ class BoundarySpec:
     """A static wall: a box or a closed mesh, as a container (fluid inside) or an obstacle."""
     name: str
     shape: str                      # "box" | "mesh"
-    role: Role = Role.CONTAINER
+    role: Role = Role(D("boundary.role"))
     box_min: Vec3 | None = None
     box_max: Vec3 | None = None
     mesh: Path | None = None
@@ -60,68 +57,88 @@ class BoundarySpec:
 
 @dataclass(frozen=True)
 class TimeStepConfig:
-    cfl_factor: float = 1.0          # lambda in dt = lambda * 0.4 * d / max|v|
-    dt_min: float = 1e-4             # s
-    dt_max: float | None = None      # s; None: 5 ms * r / 0.025 m (method.md section 1)
-    dt_initial: float | None = None  # s; None: the CFL value of the initial velocities
+    cfl_factor: float = D("time_step.cfl_factor")
+    dt_min: float = D("time_step.dt_min")
+    dt_max: float | None = D("time_step.dt_max")          # None: 5 ms * r / 0.025 m
+    dt_initial: float | None = D("time_step.dt_initial")  # None: the CFL value of the initial velocities
 
     def resolved_dt_max(self, particle_radius: float) -> float:
         return self.dt_max if self.dt_max is not None else 0.005 * particle_radius / 0.025
 
 
 @dataclass(frozen=True)
+class DivergenceConfig:
+    """[solver.divergence]: DFSPH's divergence solve, also IPSPH's (method.md sections 2, 4)."""
+    enabled: bool = D("solver.divergence.enabled")
+    error_pct: float = D("solver.divergence.error_pct")
+    min_iterations: int = D("solver.divergence.min_iterations")
+    max_iterations: int = D("solver.divergence.max_iterations")
+
+
+@dataclass(frozen=True)
+class DFSPHConfig:
+    """[solver.dfsph]: DFSPH's density solve (method.md section 2)."""
+    density_error_pct: float = D("solver.dfsph.density_error_pct")
+    density_min_iterations: int = D("solver.dfsph.density_min_iterations")
+    density_max_iterations: int = D("solver.dfsph.density_max_iterations")
+
+
+@dataclass(frozen=True)
+class PFConfig:
+    """[solver.pf]: Projective Fluids (method.md section 3); the stiffness is IPSPH's too."""
+    stiffness: float = D("solver.pf.stiffness")
+    passes: int = D("solver.pf.passes")
+
+
+@dataclass(frozen=True)
+class IPSPHConfig:
+    """[solver.ipsph]: IPSPH's average-density loop (method.md section 4)."""
+    density_error_pct: float = D("solver.ipsph.density_error_pct")
+    min_passes: int = D("solver.ipsph.min_passes")
+    max_passes: int = D("solver.ipsph.max_passes")
+    warm_start: float = D("solver.ipsph.warm_start")
+
+
+@dataclass(frozen=True)
 class SolverConfig:
-    # DFSPH (method.md section 2), also the divergence solve of IPSPH
-    density_error_pct: float = 0.01
-    density_min_iterations: int = 2
-    density_max_iterations: int = 100
-    divergence_error_pct: float = 0.1
-    divergence_min_iterations: int = 1
-    divergence_max_iterations: int = 100
-    divergence_solve: bool = True
-    # Projective Fluids (section 3)
-    pf_stiffness: float = 50_000.0
-    pf_passes: int = 3
-    # IPSPH average-density loop (section 4)
-    ipsph_density_error_pct: float = 0.05
-    ipsph_min_passes: int = 2
-    ipsph_max_passes: int = 100
-    ipsph_warm_start: float = 0.8      # fraction of last step's multipliers to start from; 0 = off
-    # the pressure solves' per-pair kernel gradients, kept while they fit (0 = never)
-    pair_cache_mb: float = 64.0
+    pair_cache_mb: float = D("solver.pair_cache_mb")
+    divergence: DivergenceConfig = DivergenceConfig()
+    dfsph: DFSPHConfig = DFSPHConfig()
+    pf: PFConfig = PFConfig()
+    ipsph: IPSPHConfig = IPSPHConfig()
 
 
 @dataclass(frozen=True)
 class OutputConfig:
-    folder: Path = Path("out")
-    fps: float = 25.0
-    every_step: bool = False
-    fields: tuple[str, ...] = ("velocity", "density", "pressure", "mass", "id")
-    checkpoint_interval: float | None = None  # simulated seconds between checkpoints
+    folder: Path = D("output.folder")
+    fps: float = D("output.fps")
+    every_step: bool = D("output.every_step")
+    fields: tuple[str, ...] = D("output.fields")
+    checkpoint_interval: float | None = D("output.checkpoint_interval")  # None: no checkpoints
 
 
 @dataclass(frozen=True)
 class RenderConfig:
-    enabled: bool = True
-    width: int = 1280
-    height: int = 720
-    view: str = "front"                 # named view, used when no camera position is given
-    camera_position: Vec3 | None = None
-    focal_point: Vec3 | None = None
-    view_up: Vec3 | None = None
-    speed_range: tuple[float, float] | None = None  # m/s; None: from the run
+    enabled: bool = D("render.enabled")
+    width: int = D("render.width")
+    height: int = D("render.height")
+    view: str = D("render.view")
+    camera_position: Vec3 | None = D("render.camera_position")
+    focal_point: Vec3 | None = D("render.focal_point")
+    view_up: Vec3 | None = D("render.view_up")
+    speed_range: tuple[float, float] | None = D("render.speed_range")  # m/s; None: from the run
 
 
 @dataclass(frozen=True)
 class Scene:
     name: str
-    method: Method = Method.IPSPH
-    particle_radius: float = 0.025
-    density0: float = 1000.0
-    gravity: Vec3 = (0.0, -9.81, 0.0)
-    end_time: float = 2.0
-    viscosity: float = 0.01             # XSPH zeta
-    standard_viscosity: float = 0.0     # nu (m^2/s) of SPlisHSPlasH's "Standard" viscosity; 0 = off
+    method: Method = Method(D("simulation.method"))
+    particle_radius: float = D("simulation.particle_radius")
+    density0: float = D("simulation.density0")
+    gravity: Vec3 = D("simulation.gravity")
+    end_time: float = D("simulation.end_time")
+    viscosity: float = D("simulation.viscosity")
+    standard_viscosity: float = D("simulation.standard_viscosity")
     time_step: TimeStepConfig = TimeStepConfig()
     solver: SolverConfig = SolverConfig()
     fluids: tuple[FluidSpec, ...] = ()

@@ -48,6 +48,15 @@ class Grid:
         self.dims = np.maximum(np.ceil((hi - lo) / cell).astype(np.int64), 1)
 
     @classmethod
+    def from_arrays(cls, origin, cell, dims) -> "Grid":
+        """The grid with exactly these origin, cell sizes and cell counts (a saved state)."""
+        g = cls.__new__(cls)
+        g.origin = np.ascontiguousarray(origin, dtype=np.float64)
+        g.cell = np.ascontiguousarray(cell, dtype=np.float64)
+        g.dims = np.ascontiguousarray(dims, dtype=np.int64)
+        return g
+
+    @classmethod
     def for_support(cls, lo, hi, support: float) -> "Grid":
         return cls(lo, hi, support * np.asarray(CELL_SHAPE))
 
@@ -404,6 +413,35 @@ class NeighbourSearch:
         reach = np.ceil(self.h * g.inv_cell).astype(np.int64)  # as gather_neighbours' row walk
         near = near_cells(boundary_start, g.dims, reach)
         self.wall_start, self.wall_cand = wall_candidates(self.boundary.x, boundary_start, g, self.h, near)
+
+    # -- state ------------------------------------------------------------------------------
+    def state_dict(self) -> dict:
+        """What a continuation needs to see the same neighbour order: the grid and the strides
+        (the lists are rebuilt by the next `update`; the walls' order is the boundary's)."""
+        g = self.grid
+        return {"k_fluid": int(self.k_fluid), "k_boundary": int(self.k_boundary),
+                "grid": None if g is None else {"origin": g.origin, "cell": g.cell, "dims": g.dims}}
+
+    def load_state_dict(self, d: dict) -> None:
+        """Put the grid and strides back, before any `update`. The boundary must already be in
+        the saved order (`Boundary.load_state_dict`): it is sorted into that grid, so its stable
+        sort is the identity; ValueError if it is not."""
+        self.k_fluid, self.k_boundary = int(d["k_fluid"]), int(d["k_boundary"])
+        self.lists = None
+        self._sort = None
+        if d["grid"] is None:
+            self.grid = None
+            self.wall_start = self.wall_cand = None
+            return
+        g = self.grid = Grid.from_arrays(**d["grid"])
+        xb = self.boundary.x
+        cells = np.empty(len(xb), dtype=np.int64)
+        cell_ids(xb, g.origin, g.inv_cell, g.dims, cells)
+        order = np.empty(len(xb), dtype=np.int64)
+        start = counting_sort(cells, g.n_cells, order)
+        if not np.array_equal(order, np.arange(len(xb))):
+            raise ValueError("the boundary is not sorted into the saved grid")
+        self.use_boundary_sort(start)
 
     # -- public -------------------------------------------------------------------------------
     def update(self, x_fluid: np.ndarray) -> np.ndarray:

@@ -13,13 +13,17 @@ import numpy as np
 class ParticleState:
     """Named numpy arrays with a common first dimension (the fluid particles)."""
 
-    def __init__(self, x: np.ndarray, v: np.ndarray, m: np.ndarray, ids: np.ndarray | None = None):
+    def __init__(self, x: np.ndarray, v: np.ndarray, m: np.ndarray, ids: np.ndarray | None = None, backend=None):
+        if backend is None:
+            from .backends import get_backend
+            backend = get_backend()
+        self.be = backend  # allocates the arrays and reorders them
         n = len(x)
         self._names: list[str] = []
-        self.add("x", np.ascontiguousarray(x, dtype=np.float64))
-        self.add("v", np.ascontiguousarray(v, dtype=np.float64))
-        self.add("m", np.ascontiguousarray(m, dtype=np.float64))
-        self.add("id", np.arange(n, dtype=np.int64) if ids is None else np.asarray(ids, dtype=np.int64))
+        self.add("x", backend.asarray(x))
+        self.add("v", backend.asarray(v))
+        self.add("m", backend.asarray(m))
+        self.add("id", backend.asarray(np.arange(n) if ids is None else ids, dtype="int64"))
 
     # declared for type checkers; set through add()
     x: np.ndarray
@@ -41,22 +45,27 @@ class ParticleState:
         return array
 
     def zeros(self, name: str, shape=(), dtype=np.float64) -> np.ndarray:
-        return self.add(name, np.zeros((self.n, *shape), dtype=dtype))
+        return self.add(name, self.be.zeros(self.n, shape, dtype=dtype))
 
     def permute(self, perm: np.ndarray) -> None:
         """Reorder every registered array by `perm` (new[i] = old[perm[i]])."""
         for name in self._names:
-            setattr(self, name, np.take(getattr(self, name), perm, axis=0))  # 2x faster than a[perm]
+            setattr(self, name, self.be.take(getattr(self, name), perm))
 
     def arrays(self) -> dict[str, np.ndarray]:
         return {name: getattr(self, name) for name in self._names}
 
-    def load(self, arrays: dict[str, np.ndarray]) -> None:
+    def state_dict(self) -> dict[str, np.ndarray]:
+        """Every registered array, on the host (a checkpoint's particle part)."""
+        return {name: self.be.to_host(getattr(self, name)) for name in self._names}
+
+    def load_state_dict(self, arrays: dict[str, np.ndarray]) -> None:
         """Replace the registered arrays (checkpoint restore); names must match exactly."""
         if set(arrays) != set(self._names):
             raise ValueError(f"state arrays differ: have {sorted(self._names)}, got {sorted(arrays)}")
         for name in self._names:
-            setattr(self, name, np.ascontiguousarray(arrays[name]))
+            a = arrays[name]
+            setattr(self, name, self.be.asarray(a, dtype=a.dtype))
 
     @property
     def nbytes(self) -> int:

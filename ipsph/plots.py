@@ -11,19 +11,12 @@ from pathlib import Path
 import numpy as np
 
 from .errors import OutputError
+from .params import PHASES as _PHASES
 
 __all__ = ["plot_runs", "PHASES"]
 
-# stats.csv timing columns -> bar labels (the paper's phase names)
-PHASES = {
-    "ms_neighbourSearch": "neighbourSearch",
-    "ms_densities": "densities",
-    "ms_solvePDConstraints": "solvePDConstraints",
-    "ms_divergenceSolve": "divergenceSolve",
-    "ms_densitySolve": "densitySolve",
-    "ms_xsph": "xsph",
-    "ms_step": "whole step",
-}
+# stats.csv timing columns -> bar labels (the paper's phase names, ipsph.params.PHASES)
+PHASES = {**{f"ms_{p}": p for p in _PHASES}, "ms_step": "whole step"}
 
 
 def _label(out: Path) -> str:

@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import ConfigError, OutputError
+from .params import RENDER_VIEWS
 from .model import RenderConfig
 
 __all__ = [
@@ -35,14 +36,7 @@ __all__ = [
     "render_output", "make_video", "VIEWS",
 ]
 
-# direction from the focal point to the camera, and the view-up vector (y is up)
-VIEWS: dict[str, tuple[tuple[float, float, float], tuple[float, float, float]]] = {
-    "front": ((0.0, 0.0, 1.0), (0.0, 1.0, 0.0)),
-    "back": ((0.0, 0.0, -1.0), (0.0, 1.0, 0.0)),
-    "side": ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0)),
-    "top": ((0.0, 1.0, 0.0), (0.0, 0.0, -1.0)),
-    "iso": ((0.75, 0.55, 1.0), (0.0, 1.0, 0.0)),
-}
+VIEWS = RENDER_VIEWS  # name -> (direction from the focal point to the camera, view-up), ipsph.params
 VIEW_ANGLE_DEG = 30.0                      # VTK's default vertical field of view
 BACKGROUND = ("#15181e", "#3b4350")        # bottom, top: dark neutral gradient, white fluid reads on it
 SURFACE_COLOUR = "#c9d3df"

@@ -28,11 +28,7 @@ from .errors import EXIT_INTERRUPTED, EXIT_OK, IpsphError, NumericalFailure, Out
 from .model import Scene
 from .simulation import Simulation, StepStats, sample_scene
 
-PHASES = ("neighbourSearch", "densities", "solvePDConstraints", "xsph", "divergenceSolve", "densitySolve")
-STATS_COLUMNS = ("step", "time", "dt", "particles", "density_error_mean_pct", "density_error_max_pct",
-                 "divergence_error_pct", "pd_passes", "divergence_iterations", "density_iterations",
-                 "max_speed", "kinetic_energy", "dt_clamped", "solver_maxed", "ms_step") \
-    + tuple(f"ms_{p}" for p in PHASES)
+STATS_COLUMNS = stats.STATS_COLUMNS
 BYTES_PER_PARTICLE = 1024  # the solver's budget per fluid particle (docs/performance.md)
 
 
@@ -287,15 +283,7 @@ class OutputFolder:
             self.checkpoint(sim)
 
     def step(self, s: StepStats) -> None:
-        row = {"step": s.step, "time": s.time, "dt": s.dt, "particles": self.sim.n_fluid,
-               "density_error_mean_pct": 100 * s.density_error_mean,
-               "density_error_max_pct": 100 * s.density_error_max,
-               "divergence_error_pct": 100 * s.divergence_error, "pd_passes": s.pd_passes,
-               "divergence_iterations": s.divergence_iterations, "density_iterations": s.density_iterations,
-               "max_speed": s.max_speed, "kinetic_energy": s.kinetic_energy, "dt_clamped": s.dt_clamped,
-               "solver_maxed": s.solver_maxed, "ms_step": 1000 * s.timings.get("step", 0.0)}
-        for p in PHASES:
-            row[f"ms_{p}"] = 1000 * s.timings.get(p, 0.0)
+        row = stats.step_row(s, self.sim.n_fluid)
         for p, v in s.timings.items():
             self.timings.setdefault(p, []).append(1000 * v)
         self.solver_maxed += s.solver_maxed

@@ -20,13 +20,12 @@ from pathlib import Path
 
 import numpy as np
 
+from .backends import Backend, get_backend
 from .boundary import Boundary
 from .errors import NumericalFailure
 from .methods import METHODS
 from .methods.base import StepReport
-from .methods.sph_passes import first_unhealthy, speed_energy
 from .model import Role, Scene
-from .neighbours import NeighbourSearch
 from .particles import ParticleState
 
 VOLUME_FACTOR = 0.8  # V = 0.8 d^3 (SPlisHSPlasH): the initial lattice starts under-dense
@@ -79,16 +78,17 @@ class Simulation:
     """One fluid simulation: particle state, static walls, a method and the clock."""
 
     def __init__(self, scene: Scene, fluid_x: np.ndarray, fluid_v: np.ndarray, boundary_x: np.ndarray,
-                 fluid_ids: np.ndarray | None = None):
+                 fluid_ids: np.ndarray | None = None, backend: str | Backend = "cpu"):
         self.scene = scene
+        self.be = get_backend(backend) if isinstance(backend, str) else backend
         r = scene.particle_radius
         self.spacing = 2.0 * r
         self.support = 4.0 * r
-        mass = scene.density0 * VOLUME_FACTOR * self.spacing ** 3
-        self.state = ParticleState(fluid_x, fluid_v, np.full(len(fluid_x), mass), fluid_ids)
+        mass = scene.density0 * VOLUME_FACTOR * self.spacing ** 3  # one fluid mass: the passes take a scalar
+        self.state = ParticleState(fluid_x, fluid_v, np.full(len(fluid_x), mass), fluid_ids, self.be)
         self.boundary = Boundary(boundary_x, self.support, scene.density0)
-        self.search = NeighbourSearch(self.support, self.boundary)
-        self.method = METHODS[scene.method](scene, self.state, self.boundary, self.search)
+        self.search = self.be.neighbour_search(self.support, self.boundary)
+        self.method = METHODS[scene.method](scene, self.state, self.boundary, self.search, self.be, mass)
         self.time = 0.0
         self.steps = 0
         self.clamped_steps = 0
@@ -97,7 +97,7 @@ class Simulation:
         self.dt_max = ts.resolved_dt_max(r)
         self.domain = self._domain(boundary_x)
         self.method.prepare()
-        vmax, _ = speed_energy(self.state.v, self.state.m)
+        vmax, _ = self.be.speed_energy(self.state.v, self.state.m)
         self.dt_next, self._clamped = self._cfl(vmax)
         if ts.dt_initial is not None:
             self.dt_next = min(ts.dt_initial, self.dt_max, max(self._viscous_dt(), self.dt_min))
@@ -142,14 +142,14 @@ class Simulation:
         except NumericalFailure as exc:  # raised inside the step (e.g. the neighbour grid blew up)
             self.time += dt
             self.steps += 1
-            self._fail(first_unhealthy(self.state.x, self.state.v, self.domain[0], self.domain[1]), str(exc))
+            self._fail(self._first_unhealthy(), str(exc))
         self.time += dt
         self.steps += 1
         st = self.state
-        bad = first_unhealthy(st.x, st.v, self.domain[0], self.domain[1])
+        bad = self._first_unhealthy()
         if bad >= 0:
             self._fail(bad)
-        vmax, ke = speed_energy(st.v, st.m)
+        vmax, ke = self.be.speed_energy(st.v, st.m)
         clamped = self._clamped  # this step's CFL value fell below dt_min
         self.clamped_steps += clamped
         self.dt_next, self._clamped = self._cfl(vmax)
@@ -157,14 +157,18 @@ class Simulation:
         return StepStats(**vars(rep), step=self.steps, time=self.time, max_speed=vmax, kinetic_energy=ke,
                          dt_clamped=clamped)
 
+    def _first_unhealthy(self) -> int:
+        return self.be.first_unhealthy(self.state.x, self.state.v, self.domain[0], self.domain[1])
+
     def _fail(self, i: int, inner: str | None = None):
         """Raise NumericalFailure naming step, time, particle id and quantity (i < 0: no particle found)."""
         where = f"numerical failure at step {self.steps}, t = {self.time:.6g} s"
         hint = "try a smaller time step (time_step.dt_max) or cfl_factor"
         if i < 0:
             raise NumericalFailure(f"{where}: {inner}; {hint}")
-        x, v = self.state.x[i], self.state.v[i]
-        pid = int(self.state.id[i])
+        be = self.be
+        x, v = be.to_host(self.state.x)[i], be.to_host(self.state.v)[i]
+        pid = int(be.to_host(self.state.id)[i])
         if not (np.all(np.isfinite(x)) and np.all(np.isfinite(v))):
             what = f"non-finite {'position' if not np.all(np.isfinite(x)) else 'velocity'}"
         else:
@@ -224,6 +228,30 @@ class Simulation:
             self.advance_to(end_time, on_step)
             if on_frame is not None:
                 on_frame(self, frame + 1)
+
+    # -- state ------------------------------------------------------------------------------
+    def state_dict(self) -> dict:
+        """Everything a bit-identical continuation needs, between two steps: the particles, the
+        walls and the neighbour grid in their current order, and the clock."""
+        return {"particles": self.state.state_dict(), "boundary": self.boundary.state_dict(),
+                "search": self.search.state_dict(), "method": self.method.state_dict(),
+                "clock": {"time": self.time, "steps": self.steps, "clamped_steps": int(self.clamped_steps),
+                          "dt_next": self.dt_next, "next_clamped": bool(self._clamped)}}
+
+    def load_state_dict(self, d: dict) -> None:
+        """Continue from `state_dict()` of a Simulation of the same scene (ValueError if it does not
+        fit). The walls and the grid go back before any neighbour search, so the sort of the
+        (already sorted) fluid is the identity; then the method recomputes what it derives from
+        positions."""
+        self.boundary.load_state_dict(d["boundary"])
+        self.search.load_state_dict(d["search"])
+        self.state.load_state_dict(d["particles"])
+        c = d["clock"]
+        self.time, self.steps = float(c["time"]), int(c["steps"])
+        self.clamped_steps = int(c["clamped_steps"])
+        self.dt_next, self._clamped = float(c["dt_next"]), bool(c["next_clamped"])
+        self.method.load_state_dict(d["method"])
+        self.method.prepare()
 
     # -- particle arrays (current order; `ids` maps them to the initial numbering) -------------
     @property

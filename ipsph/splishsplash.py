@@ -3,8 +3,8 @@
 `scene_dict(path)` converts a SPlisHSPlasH scene (both the current layout, with solver blocks
 "DFSPH" / "Projective Fluids" in Configuration and viscosity in "Materials", and the 2.0.0
 layout, everything flat in "Configuration") into ipsph's TOML dict form plus one warning
-string listing every key that is not supported. `import_scene(path)` validates that dict with
-`ipsph.scene.scene_from_dict`. Keys that would make a different simulation (emitters, dynamic
+string listing every key that is not supported. `ipsph.scene.load_scene` validates that dict
+with the TOML rules. Keys that would make a different simulation (emitters, dynamic
 bodies, dense sampling, other pressure solvers, multiphase) are refused with a ConfigError;
 keys that only affect visuals, caching or secondary physics are reported in the warning.
 
@@ -16,16 +16,14 @@ lattice (DamBreakModel: 19 x 19 x 19 = 6,859 particles).
 """
 from __future__ import annotations
 
-import dataclasses
 import json
 import math
 from pathlib import Path
 from typing import Any
 
 from .errors import ConfigError
-from .model import Scene
 
-__all__ = ["import_scene", "scene_dict", "IMPORT_NOTES", "DEFAULT_END_TIME"]
+__all__ = ["scene_dict", "IMPORT_NOTES", "DEFAULT_END_TIME"]
 
 # SPlisHSPlasH's own defaults where a scene leaves a key out (doc/file_format.md, Simulation.cpp)
 _SPH_DEFAULTS = {"particleRadius": 0.025, "simulationMethod": 4, "timeStepSize": 0.001,
@@ -76,7 +74,7 @@ validated as a TOML scene, so override keys are ipsph's (`--set simulation.metho
 | `timeStepSize` (default 0.001) | `time_step.dt_initial` |
 | `cflFactor` (default 0.5), `cflMaxTimeStepSize` (default 0.005), `cflMinTimeStepSize` (default 1e-4) | `time_step.cfl_factor`, `dt_max`, `dt_min` |
 | `cflMethod` 0 (fixed step) | `dt_min = dt_max = dt_initial = timeStepSize`; 2 is treated as 1 (warned) |
-| `DFSPH`: `minIterations`, `maxIterations`, `maxError` (%), `maxIterationsV`, `maxErrorV` (%), `enableDivergenceSolver` | `solver.dfsph.density_min_iterations`, `density_max_iterations`, `density_error_pct`, `divergence_max_iterations`, `divergence_error_pct`, `divergence_solve` |
+| `DFSPH`: `minIterations`, `maxIterations`, `maxError` (%), `maxIterationsV`, `maxErrorV` (%), `enableDivergenceSolver` | `solver.dfsph.density_min_iterations`, `density_max_iterations`, `density_error_pct`; `solver.divergence.max_iterations`, `error_pct`, `enabled` |
 | `Projective Fluids`: `stiffness` | `solver.pf.stiffness` |
 | `Projective Fluids`: `minIterations`, `maxIterations`, `maxError` (%) | `solver.ipsph.min_passes`, `max_passes`, `density_error_pct` (used when you switch the method to ipsph; plain PF runs `solver.pf.passes` = 3 fixed passes, as SPlisHSPlasH does) |
 | 2.0.0 flat `maxIterations`, `maxError`, ... | as the block of the scene's method; `stiffness` -> `solver.pf.stiffness` |
@@ -103,20 +101,6 @@ coefficient (method 0, None, gives zeta = 0). The Standard model's wall friction
 SPlisHSPlasH's own default is used (listed in the table), except `end_time`, which defaults to
 2.0 s.
 """
-
-
-def import_scene(path: str | Path) -> Scene:
-    """Read a SPlisHSPlasH JSON scene as a validated Scene (its warnings in Scene.warnings)."""
-    from .scene import scene_from_dict
-
-    given = Path(path)
-    resolved = given.expanduser().resolve()
-    if not resolved.is_file():
-        raise ConfigError(f"scene file not found: {given} (resolved: {resolved})")
-    data, warnings = scene_dict(resolved, where=str(given))
-    data.setdefault("name", resolved.stem)
-    scene = scene_from_dict(data, resolved.parent, source=resolved)
-    return dataclasses.replace(scene, warnings=warnings)
 
 
 def scene_dict(path: Path, where: str | None = None) -> tuple[dict, tuple[str, ...]]:
@@ -317,9 +301,9 @@ class _Importer:
         keys = {"minIterations": ("dfsph", "density_min_iterations", self.int_),
                 "maxIterations": ("dfsph", "density_max_iterations", self.int_),
                 "maxError": ("dfsph", "density_error_pct", self.num),
-                "maxIterationsV": ("dfsph", "divergence_max_iterations", self.int_),
-                "maxErrorV": ("dfsph", "divergence_error_pct", self.num),
-                "enableDivergenceSolver": ("dfsph", "divergence_solve", self.bool_)}
+                "maxIterationsV": ("divergence", "max_iterations", self.int_),
+                "maxErrorV": ("divergence", "error_pct", self.num),
+                "enableDivergenceSolver": ("divergence", "enabled", self.bool_)}
         self._block(b, "Configuration.DFSPH", keys, solver)
 
     def pf_block(self, b: dict, solver: dict) -> None:

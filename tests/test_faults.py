@@ -92,8 +92,8 @@ def test_escape_exits_3_and_keeps_frames(tmp_path, capsys):
 def test_solver_caps_are_counted_and_reported(tmp_path, capsys):
     out = tmp_path / "out"
     # one divergence iteration cannot bring the divergence error of the falling column to 0.001 %
-    code, err = run_cli(capsys, out, "--end-time", "0.12", "--set", "solver.dfsph.divergence_max_iterations=1",
-                        "--set", "solver.dfsph.divergence_error_pct=0.001")
+    code, err = run_cli(capsys, out, "--end-time", "0.12", "--set", "solver.divergence.max_iterations=1",
+                        "--set", "solver.divergence.error_pct=0.001")
     assert code == 0, err
     info = json.loads((out / RUN_JSON).read_text())
     per_step = read_stats(out / STATS_CSV)["solver_maxed"]

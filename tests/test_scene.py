@@ -5,6 +5,7 @@ import dataclasses
 import json
 import math
 import re
+import typing
 from pathlib import Path
 
 import pytest
@@ -12,9 +13,9 @@ import pytest
 from ipsph import model
 from ipsph.errors import ConfigError
 from ipsph.model import Method, Role, Scene, Transform
-from ipsph.scene import (PARAMS, apply_overrides, default_scene_path, lattice_counts,
-                         load_scene, override_help, reference_markdown, scene_from_dict,
-                         scene_to_dict)
+from ipsph.params import RENAMED
+from ipsph.scene import (PARAMS, apply_overrides, default_scene_path, key_help, lattice_counts,
+                         load_scene, reference_markdown, scene_from_dict, scene_to_dict)
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -47,34 +48,33 @@ def test_default_scene_is_the_documented_dam_break():
     assert math.prod(lattice_counts(fluid.box_min, fluid.box_max, 0.02)) == 3724
 
 
-def test_table_defaults_equal_the_model_defaults():
-    """PARAMS documents each default; it must be the dataclass default that actually applies."""
-    owners = {"": Scene, "time_step": model.TimeStepConfig, "solver": model.SolverConfig,
-              "output": model.OutputConfig, "render": model.RenderConfig}
-    checked = 0
-    for p in PARAMS:
-        head = p.path.split(".", 1)[0]
-        if head in ("fluid", "boundary"):
-            cls = model.FluidSpec if head == "fluid" else model.BoundarySpec
-            attr = p.target
-            if attr.startswith("transform."):
-                cls, attr = Transform, attr.split(".", 1)[1]
-        else:
-            owner, _, attr = p.target.rpartition(".")
-            cls = owners[owner]
-        f = {f.name: f for f in dataclasses.fields(cls)}[attr]
-        if f.default is dataclasses.MISSING:
-            assert p.default is None, p.path  # no model default: the table must not invent one
-            continue
-        assert p.default == f.default, f"{p.path}: table {p.default!r} != model {f.default!r}"
-        checked += 1
-    assert checked >= 40
-    # every model field a user can set is in the table (no silently unreachable setting)
+def test_every_settable_model_field_has_a_scene_key():
+    """No silently unreachable setting: every leaf field of the configs is some parameter's target."""
     targets = {p.target for p in PARAMS}
+
+    def leaves(cls, prefix):
+        for f in dataclasses.fields(cls):
+            t = typing.get_type_hints(cls)[f.name]
+            if dataclasses.is_dataclass(t):
+                yield from leaves(t, f"{prefix}{f.name}.")
+            else:
+                yield prefix + f.name
+
     for prefix, cls in (("time_step.", model.TimeStepConfig), ("solver.", model.SolverConfig),
                         ("output.", model.OutputConfig), ("render.", model.RenderConfig)):
-        for f in dataclasses.fields(cls):
-            assert prefix + f.name in targets, f"{cls.__name__}.{f.name} has no scene key"
+        for leaf in leaves(cls, prefix):
+            assert leaf in targets, f"{leaf} has no scene key"
+
+
+@pytest.mark.parametrize("old, new", sorted(RENAMED.items()))
+def test_renamed_keys_are_refused_naming_the_new_one(tmp_path, old, new):
+    table, key = old.rsplit(".", 1)
+    with pytest.raises(ConfigError) as e:
+        load_scene(write(tmp_path, f"[{table}]\n{key} = 1\n" + MINIMAL))
+    msg = str(e.value)
+    assert f"{old} was renamed to {new}" in msg and "\n" not in msg
+    with pytest.raises(ConfigError, match=re.escape(f"{old} was renamed to {new}")):
+        load_scene(default_scene_path(), [f"{old}=1"])
 
 
 def test_keys_left_out_take_the_model_defaults(tmp_path):
@@ -93,16 +93,10 @@ def test_docs_reference_is_generated_and_current():
     assert "Importing SPlisHSPlasH scenes" in doc
 
 
-def test_override_help_lists_every_settable_key():
-    text = override_help()
+def test_key_help_lists_every_settable_key():
+    text = key_help()
     assert "simulation.particle_radius" in text and "fluid.<i>.velocity" in text
     assert len(text.splitlines()) == len(PARAMS) - 1  # all but `source`
-
-
-def test_render_views_match_the_renderer():
-    render = pytest.importorskip("ipsph.render")
-    from ipsph.scene import RENDER_VIEWS
-    assert set(RENDER_VIEWS) == set(render.VIEWS)
 
 
 # -- errors --------------------------------------------------------------------------------------
@@ -253,7 +247,7 @@ def test_overrides_set_sections_and_entities(tmp_path):
     assert s.end_time == 1.5 and s.method == Method.DFSPH
     assert s.fluids[0].velocity == (1.0, 0.0, 0.0) and s.fluids[0].name == "water"
     assert s.output.folder == Path("runs/a")  # bare words parse as strings
-    assert s.time_step.dt_max == 0.002 and s.solver.density_error_pct == 0.05
+    assert s.time_step.dt_max == 0.002 and s.solver.dfsph.density_error_pct == 0.05
     assert s.render.enabled is False and s.boundaries[0].role == Role.OBSTACLE
     back = load_scene(default_scene_path(), ["time_step.dt_max=0.002", "time_step.dt_max=auto"])
     assert back.time_step.dt_max is None

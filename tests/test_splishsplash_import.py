@@ -12,7 +12,6 @@ import pytest
 from ipsph.errors import ConfigError
 from ipsph.model import Method, Role, Transform
 from ipsph.scene import load_scene, scene_from_dict, scene_to_dict
-from ipsph.splishsplash import import_scene
 
 ANCHORS = Path(__file__).resolve().parents[2] / "shared" / "anchors" / "splishsplash"
 needs_anchors = pytest.mark.skipif(
@@ -65,10 +64,10 @@ def test_stock_scenes_import(rel):
 def test_current_layout_solver_blocks_are_mapped():
     s = load_scene(ANCHORS / "Scenes/DamBreakModel.json")
     sv = s.solver
-    assert sv.density_error_pct == 0.05  # the stock 0.05 %, not ipsph's 0.01 % default
-    assert (sv.density_min_iterations, sv.density_max_iterations) == (2, 100)
-    assert (sv.divergence_error_pct, sv.divergence_max_iterations) == (0.1, 100)
-    assert sv.divergence_solve is True
+    assert sv.dfsph.density_error_pct == 0.05  # the stock 0.05 %, not ipsph's 0.01 % default
+    assert (sv.dfsph.density_min_iterations, sv.dfsph.density_max_iterations) == (2, 100)
+    assert (sv.divergence.error_pct, sv.divergence.max_iterations) == (0.1, 100)
+    assert sv.divergence.enabled is True
     assert s.time_step.dt_initial == 0.005 and s.time_step.cfl_factor == 1.0
     assert (s.standard_viscosity, s.viscosity) == (0.01, 0.0)  # its Standard model, no XSPH on top
     w = s.warnings[0]
@@ -96,9 +95,9 @@ def test_fluid_block_translation_and_scale():
 @needs_anchors
 def test_pf_scene_maps_the_projective_fluids_block_and_velocities():
     s = load_scene(ANCHORS / "Scenes/CompressibleSPH_PF.json")
-    assert s.solver.pf_stiffness == 25_000.0
-    assert (s.solver.ipsph_min_passes, s.solver.ipsph_max_passes) == (2, 100)
-    assert s.solver.ipsph_density_error_pct == 0.05
+    assert s.solver.pf.stiffness == 25_000.0
+    assert (s.solver.ipsph.min_passes, s.solver.ipsph.max_passes) == (2, 100)
+    assert s.solver.ipsph.density_error_pct == 0.05
     assert [f.velocity for f in s.fluids] == [(5.0, 0.0, 0.0), (-5.0, 0.0, 0.0)]
     assert s.render.camera_position == (0.0, 2.0, 5.0) and s.render.focal_point == (0.0, 0.0, 0.0)
     assert s.time_step.dt_initial == 0.001  # no timeStepSize: SPlisHSPlasH's default
@@ -107,8 +106,8 @@ def test_pf_scene_maps_the_projective_fluids_block_and_velocities():
 @needs_anchors
 def test_v200_flat_layout():
     s = load_scene(ANCHORS / "Scenes_v2.0.0/DamBreakModel.json")
-    assert s.solver.density_error_pct == 0.01 and s.solver.divergence_error_pct == 0.1
-    assert s.solver.pf_stiffness == 50_000.0
+    assert s.solver.dfsph.density_error_pct == 0.01 and s.solver.divergence.error_pct == 0.1
+    assert s.solver.pf.stiffness == 50_000.0
     assert s.viscosity == 0.03 and s.time_step.cfl_factor == 0.5
     assert s.time_step.dt_initial == 0.001
     w = s.warnings[0]
@@ -125,7 +124,7 @@ def test_overrides_apply_to_imported_scenes():
                    ["simulation.method=ipsph", "fluid.0.velocity=[1, 0, 0]",
                     "simulation.end_time=1.0"])
     assert s.method == Method.IPSPH and s.fluids[0].velocity == (1.0, 0.0, 0.0)
-    assert s.end_time == 1.0 and s.solver.density_error_pct == 0.05
+    assert s.end_time == 1.0 and s.solver.dfsph.density_error_pct == 0.05
     assert s.warnings and "boundaryHandlingMethod" in s.warnings[0]
 
 
@@ -164,7 +163,7 @@ def test_json_syntax_error_has_line_and_column(tmp_path):
 ])
 def test_unsupported_physics_is_refused(tmp_path, data, fragment):
     with pytest.raises(ConfigError, match=re.escape(fragment)):
-        import_scene(scene_file(tmp_path, data))
+        load_scene(scene_file(tmp_path, data))
 
 
 def test_fluid_models_rigid_bodies_and_fixed_step(tmp_path):
@@ -179,7 +178,7 @@ def test_fluid_models_rigid_bodies_and_fixed_step(tmp_path):
         "RigidBodies": [{"geometryFile": "box.obj", "isWall": False, "mapInvert": True},
                         {"geometryFile": "box.obj"}],
     }
-    s = import_scene(scene_file(tmp_path, data))
+    s = load_scene(scene_file(tmp_path, data))
     assert s.method == Method.PF and s.end_time == 3.5 and s.output.fps == 50.0
     ts = s.time_step
     assert ts.dt_min == ts.dt_max == ts.dt_initial == 0.002  # cflMethod 0: a fixed step
@@ -209,12 +208,12 @@ def test_standard_viscosity_is_imported_as_the_same_model(tmp_path):
     data = {"FluidBlocks": [BLOCK],
             "Materials": [{"id": "Fluid", "viscosityMethod": 1,
                            "Standard viscosity": {"viscosity": 0.02, "viscosityBoundary": 0.5}}]}
-    s = import_scene(scene_file(tmp_path, data))
+    s = load_scene(scene_file(tmp_path, data))
     assert (s.standard_viscosity, s.viscosity) == (0.02, 0.0)
     w = s.warnings[0]
     assert "viscosityBoundary" in w  # the model's wall friction is not imported: said, not dropped
     assert "standard_viscosity = 0.02 m^2/s, XSPH off" in w
     # another non-XSPH model keeps the documented fallback (its value as XSPH zeta)
     data["Materials"] = [{"id": "Fluid", "viscosityMethod": 3, "viscosity": 0.02}]
-    s = import_scene(scene_file(tmp_path, data, "b.json"))
+    s = load_scene(scene_file(tmp_path, data, "b.json"))
     assert (s.standard_viscosity, s.viscosity) == (0.0, 0.02)

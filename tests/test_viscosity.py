@@ -1,4 +1,4 @@
-"""The viscosity pass (sph_passes.xsph): SPlisHSPlasH's "Standard" viscosity on a lattice block.
+"""The viscosity pass (backends.bodies.viscosity_at through the CPU launcher xsph): SPlisHSPlasH's "Standard" viscosity on a lattice block.
 
     dv_i = 10 nu dt sum_j (m_j / rho_j) (v_ij . x_ij) / (r_ij^2 + 0.01 H^2) grad W_ij
 
@@ -8,7 +8,7 @@ test does not depend on the neighbour search.
 import numpy as np
 import pytest
 
-from ipsph.methods.sph_passes import NO_DISPLACEMENT, NO_PAIR_CACHE, density_factor_lambda, xsph
+from ipsph.backends.cpu_passes import NO_DISPLACEMENT, NO_PAIR_CACHE, density_factor_lambda, xsph
 
 RHO0 = 1000.0
 R = 0.025

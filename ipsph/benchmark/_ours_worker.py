@@ -85,7 +85,7 @@ def solver_nbytes(sim) -> int:
     search = sim.search
     return (_arrays_nbytes(sim.state) + _arrays_nbytes(search, getattr(search, "lists", None),
                                                        getattr(search, "grid", None))
-            + _arrays_nbytes(sim.boundary) + _arrays_nbytes(sim.method))
+            + _arrays_nbytes(sim.boundary) + sim.method.nbytes)
 
 
 def _median(xs):

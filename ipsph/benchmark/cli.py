@@ -26,11 +26,12 @@ import time
 from pathlib import Path
 
 from ..errors import ConfigError
+from ..params import METHOD_NAMES
 from . import report
 from .scenes import (DEFAULT_SCENES, PIPELINES, pipeline_path, resolve_scene, scaling_count,
                      scaling_dt_max, scaling_overrides, scaling_peer_scene)
 
-OUR_METHODS = ("ipsph", "pf", "dfsph")
+OUR_METHODS = METHOD_NAMES
 PEER_METHODS = ("dfsph", "pf")
 FIRST_FRAME_TARGET_S = 5.0
 
@@ -81,6 +82,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--dragon-mesh", type=Path, metavar="OBJ",
                    help="with --table1: SPlisHSPlasH's Dragon_50k.obj for both dragons of two_dragons.toml "
                         "(default: the pipeline's relative path into shared/anchors/splishsplash/models)")
+    p.add_argument("--baseline", type=Path, metavar="DIR",
+                   help="also run our methods from the ipsph source tree DIR (e.g. `git worktree add ../base main`), "
+                        "interleaved with this build, and print this / baseline ratios (a change's speed A/B)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="scene override for all our runs (repeatable), e.g. --set simulation.viscosity=0.02")
     p.add_argument("--markdown", action="store_true", help="print Markdown tables")
@@ -96,6 +100,9 @@ def _log(msg: str) -> None:
 
 
 def _check_args(args) -> None:
+    if args.baseline is not None and not (args.baseline / "ipsph" / "benchmark" / "_ours_worker.py").is_file():
+        raise ConfigError(f"--baseline {args.baseline} (resolved {args.baseline.resolve()}): not an ipsph source "
+                          f"tree (no ipsph/benchmark/_ours_worker.py in it)")
     if not args.end_time > 0:
         raise ConfigError(f"--end-time {args.end_time}: must be > 0 simulated seconds")
     if args.repeats < 1:
@@ -127,17 +134,21 @@ def _run_one(kind: str, scene_file: Path, method: str, args, label_scene: str, r
     t = args.end_time if end_time is None else end_time
     t0 = time.perf_counter()
     try:
-        if kind == "ours":
+        if kind in ("ours", "baseline"):
             from .ours import run_ours
-            res = run_ours(scene_file, method, t, args.threads, overrides, timeout=args.timeout)
+            env = {"PYTHONPATH": str(args.baseline.resolve())} if kind == "baseline" else None
+            res = run_ours(scene_file, method, t, args.threads, overrides, timeout=args.timeout, env=env)
         else:
             from .peer import run_peer
             res = run_peer(scene_file, method, t, args.threads, timeout=args.timeout, work_dir=work_dir)
-        row = report.normalise(res, kind, method, label_scene, repeat)
+        row = report.normalise(res, "ours" if kind == "baseline" else kind, method, label_scene, repeat)
+        if kind == "baseline":
+            row.update(source=kind, label=row["label"] + report.BASELINE)
         row["raw"] = res
     except (RuntimeError, ConfigError, OSError) as exc:
+        label = report.LABELS[("ours" if kind == "baseline" else kind, method)]
         row = {"scene": label_scene, "source": kind, "method": method, "repeat": repeat,
-               "label": report.LABELS[(kind, method)], "error": str(exc)}
+               "label": label + (report.BASELINE if kind == "baseline" else ""), "error": str(exc)}
     row["elapsed_s"] = time.perf_counter() - t0
     return row
 
@@ -172,7 +183,10 @@ def bench_scenes(args, peer: bool) -> tuple[str, list[dict]]:
     jobs = []
     for f, given in files:
         label = f.stem
-        jobs += [("ours", f, m, label, tuple(args.set)) for m in args.methods]
+        for m in args.methods:
+            jobs.append(("ours", f, m, label, tuple(args.set)))
+            if args.baseline is not None:
+                jobs.append(("baseline", f, m, label, tuple(args.set)))
         if peer:
             if f.suffix.lower() == ".json":
                 jobs += [("peer", f, m, label, ()) for m in PEER_METHODS]

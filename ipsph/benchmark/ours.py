@@ -14,11 +14,12 @@ import sys
 from pathlib import Path
 
 from ..errors import ConfigError
+from ..params import METHOD_NAMES
 from .machine import run_json_worker
 
 __all__ = ["METHODS", "ours_env", "run_ours"]
 
-METHODS = ("ipsph", "pf", "dfsph")
+METHODS = METHOD_NAMES
 _REPO_ROOT = Path(__file__).resolve().parents[2]
 
 
@@ -57,7 +58,8 @@ def run_ours(scene_path: str | Path, method: str, end_time: float | None, thread
         if not resolved.is_file():
             raise ConfigError(f"scene {scene_path} (resolved {resolved}) is not a file")
         scene = str(resolved)
-    cmd = [sys.executable, "-m", "ipsph.benchmark._ours_worker", "--scene", scene, "--method", method,
+    # -P: the current folder is not put first on sys.path, so ipsph comes from PYTHONPATH (ours_env)
+    cmd = [sys.executable, "-P", "-m", "ipsph.benchmark._ours_worker", "--scene", scene, "--method", method,
            "--threads", str(threads)]
     if steps is not None:
         cmd += ["--steps", str(int(steps)), "--warmup", str(int(warmup))]

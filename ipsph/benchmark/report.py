@@ -12,14 +12,16 @@ from __future__ import annotations
 import math
 from collections import OrderedDict
 
+from ..params import PHASES
+
 __all__ = ["LABELS", "normalise", "is_loaded", "summarise", "format_table", "scene_tables", "ratio_lines",
            "scaling_table", "first_frame_table", "table1", "PHASE_SHORT"]
 
 LABELS = {("ours", "ipsph"): "IPSPH", ("ours", "pf"): "PF", ("ours", "dfsph"): "DFSPH",
           ("peer", "dfsph"): "SPH-DFSPH", ("peer", "pf"): "SPH-PF"}
+BASELINE = " (baseline)"  # label suffix of `ipsph bench --baseline DIR` rows
 # per-phase column: our timer name -> short label, in print order
-PHASE_SHORT = OrderedDict([("neighbourSearch", "nbr"), ("densities", "rho"), ("solvePDConstraints", "PD"),
-                           ("xsph", "xsph"), ("divergenceSolve", "div"), ("densitySolve", "dens")])
+PHASE_SHORT = OrderedDict((p, short) for p, (short, _) in PHASES.items())
 NUMERIC = ("fluid", "boundary", "steps", "ms_step", "ms_step_mean", "wall_per_sim", "wall_seconds", "err_mean",
            "err_worst", "err_max", "rss_mb", "others_cores", "loadavg", "first_step_s", "setup_s", "iters_mean",
            "us_particle_step", "bytes_rss", "bytes_solver", "bytes_pair_cache")
@@ -196,24 +198,27 @@ def ratio_lines(groups, scene: str) -> list[str]:
     (loaded included), and the line says so.
     """
     here = {label: g for (s, label), g in groups.items() if s == scene}
+    pairs = [("IPSPH", peer) for peer in ("SPH-DFSPH", "SPH-PF")]
+    pairs += [(label, label + BASELINE) for label in ("IPSPH", "PF", "DFSPH")]  # ipsph bench --baseline
     lines = []
-    for peer in ("SPH-DFSPH", "SPH-PF"):
-        if "IPSPH" not in here or peer not in here:
+    for mine, other in pairs:
+        if mine not in here or other not in here:
             continue
-        ours, p, note = here["IPSPH"]["median"], here[peer]["median"], ""
+        ours, p, note = here[mine]["median"], here[other]["median"], ""
         if ours is None or p is None:
-            ours, p, note = here["IPSPH"]["median_all"], here[peer]["median_all"], " (from LOADED runs)"
+            ours, p, note = here[mine]["median_all"], here[other]["median_all"], " (from LOADED runs)"
         if ours is None or p is None:
             continue
         a, b = _f(ours.get("wall_per_sim")), _f(p.get("wall_per_sim"))
         c, d = _f(ours.get("ms_step")), _f(p.get("ms_step"))
+        q = 3 if other.endswith(BASELINE) else 2  # an A/B of one build against another: finer
         if b > 0 and d > 0 and not math.isnan(a):
-            lines.append(f"IPSPH / {peer}: wall per simulated second {a / b:.2f}x, ms per step {c / d:.2f}x{note}"
-                         + _round_ratios(here["IPSPH"]["quiet"], here[peer]["quiet"]))
+            lines.append(f"{mine} / {other.strip()}: wall per simulated second {a / b:.{q}f}x, ms per step "
+                         f"{c / d:.{q}f}x{note}" + _round_ratios(here[mine]["quiet"], here[other]["quiet"], q))
     return lines
 
 
-def _round_ratios(ours: list[dict], peer: list[dict]) -> str:
+def _round_ratios(ours: list[dict], peer: list[dict], q: int = 2) -> str:
     """'; same round 0.88 1.11 1.21, fastest/fastest 1.17x' (wall per simulated second), from quiet runs.
 
     Runs of one repeat ran minutes apart at most, so their ratio sees less of the machine's drift
@@ -225,7 +230,7 @@ def _round_ratios(ours: list[dict], peer: list[dict]) -> str:
     if len(pairs) < 2:
         return ""
     fastest = min(a.values()) / min(b.values())
-    return f"; same round {' '.join(f'{x:.2f}' for x in pairs)}, fastest/fastest {fastest:.2f}x"
+    return f"; same round {' '.join(f'{x:.{q}f}' for x in pairs)}, fastest/fastest {fastest:.{q}f}x"
 
 
 SCALING_HEADERS = ["method", "fluid", "boundary", "timed steps", "ms/step (median)", "us / fluid particle-step",

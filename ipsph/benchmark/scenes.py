@@ -21,7 +21,7 @@ from ..errors import ConfigError
 from ..model import TimeStepConfig
 from ..scene import lattice_counts
 
-__all__ = ["DEFAULT_SCENES", "PIPELINES", "find_stock_scene_dir", "resolve_scene", "pipeline_path",
+__all__ = ["DEFAULT_SCENES", "PIPELINES", "resolve_scene", "pipeline_path",
            "scaling_overrides", "scaling_count", "scaling_dt_max",
            "scaling_peer_scene"]
 
@@ -43,14 +43,6 @@ def _candidates(scene_dir: str | Path | None) -> list[Path]:
     for base in (_REPO_ROOT.parent, Path.cwd().parent, Path.cwd(), _REPO_ROOT):
         out.append(base / _STOCK_SUBDIR)
     return list(dict.fromkeys(out))
-
-
-def find_stock_scene_dir(scene_dir: str | Path | None = None) -> Path | None:
-    """The first folder among the candidates that exists (None when none does)."""
-    for c in _candidates(scene_dir):
-        if c.is_dir():
-            return c.resolve()
-    return None
 
 
 def resolve_scene(name_or_path: str, scene_dir: str | Path | None = None) -> Path:

@@ -1,10 +1,8 @@
 """stats.csv: one row per simulation step, appended and flushed as the run goes.
 
-Columns the runner writes (plots use these names): step, time, dt, particles,
-density_error_mean_pct, density_error_max_pct, divergence_error_pct, pd_passes,
-divergence_iterations, density_iterations, max_speed, kinetic_energy, dt_clamped (0/1),
-solver_maxed, ms_step, ms_neighbourSearch, ms_densities, ms_solvePDConstraints, ms_xsph,
-ms_divergenceSolve, ms_densitySolve.
+The columns are declared once, in `STEP_COLUMNS` (each with how it is read from a step's
+`StepStats`) and `ipsph.params.PHASES` (the `ms_<phase>` timings); `STATS_COLUMNS` and
+`step_row` are generated from them, and the plots and docs/output-format.md read those names.
 """
 from __future__ import annotations
 
@@ -17,14 +15,37 @@ import numpy as np
 from ..errors import OutputError, WriteError
 from . import atomic_path
 
-__all__ = ["StatsWriter", "read_stats", "STATS_COLUMNS"]
+from ..params import PHASES
 
-STATS_COLUMNS = (
-    "step", "time", "dt", "particles", "density_error_mean_pct", "density_error_max_pct",
-    "divergence_error_pct", "pd_passes", "divergence_iterations", "density_iterations",
-    "max_speed", "kinetic_energy", "dt_clamped", "solver_maxed", "ms_step", "ms_neighbourSearch",
-    "ms_densities", "ms_solvePDConstraints", "ms_xsph", "ms_divergenceSolve", "ms_densitySolve",
-)
+__all__ = ["StatsWriter", "read_stats", "STATS_COLUMNS", "STEP_COLUMNS", "step_row"]
+
+# column -> (its value for one step s, a StepStats, and the fluid particle count n; what it is)
+STEP_COLUMNS = {
+    "step": (lambda s, n: s.step, "step number, from 1"),
+    "time": (lambda s, n: s.time, "simulated time at the end of the step [s]"),
+    "dt": (lambda s, n: s.dt, "the step's time step [s]"),
+    "particles": (lambda s, n: n, "fluid particles"),
+    "density_error_mean_pct": (lambda s, n: 100 * s.density_error_mean,
+                               "mean positive density error at the end-of-step positions [%]"),
+    "density_error_max_pct": (lambda s, n: 100 * s.density_error_max, "largest density error [%]"),
+    "divergence_error_pct": (lambda s, n: 100 * s.divergence_error, "dt mean(D rho/Dt) / rho0 after the solve [%]"),
+    "pd_passes": (lambda s, n: s.pd_passes, "PF local/global passes (PF, IPSPH)"),
+    "divergence_iterations": (lambda s, n: s.divergence_iterations, "divergence-solve iterations"),
+    "density_iterations": (lambda s, n: s.density_iterations, "DFSPH density-solve iterations"),
+    "max_speed": (lambda s, n: s.max_speed, "largest particle speed [m/s]"),
+    "kinetic_energy": (lambda s, n: s.kinetic_energy, "kinetic energy [J]"),
+    "dt_clamped": (lambda s, n: s.dt_clamped, "1 when the CFL step fell below time_step.dt_min"),
+    "solver_maxed": (lambda s, n: s.solver_maxed, "solves that stopped at their iteration cap"),
+    "ms_step": (lambda s, n: 1000 * s.timings.get("step", 0.0), "wall time of the whole step [ms]"),
+    **{f"ms_{p}": ((lambda s, n, p=p: 1000 * s.timings.get(p, 0.0)), f"wall time: {what} [ms]")
+       for p, (_, what) in PHASES.items()},
+}
+STATS_COLUMNS = tuple(STEP_COLUMNS)
+
+
+def step_row(s, n_fluid: int) -> dict:
+    """One stats.csv row from a step's StepStats."""
+    return {name: value(s, n_fluid) for name, (value, _) in STEP_COLUMNS.items()}
 
 
 def _fmt(v) -> str:

@@ -1,17 +1,20 @@
-"""What the three methods share: arrays, neighbour search with reordering, timers, reports."""
+"""What the three methods share: the backend they run on, the fluid's constants, the neighbour
+search with reordering, the pair-cache budget, timers and the step report.
+
+A method owns no numpy: its arrays come from `self.be` (the backend), its scratch lives in a
+small per-method container (`DFSPHData`, `PFData`, `IPSPHData`), and its `step()` is the
+algorithm box, one backend pass or shared solve (`solves.py`) per line.
+"""
 from __future__ import annotations
 
 import time
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields, is_dataclass
 
-import numpy as np
-
+from ..backends import Backend
 from ..boundary import Boundary
 from ..model import Scene
-from ..neighbours import NeighbourSearch
 from ..particles import ParticleState
-from .sph_passes import NO_PAIR_CACHE, mean
 
 PAIR_CACHE_BYTES = 24  # per neighbour-list slot: mf grad W_ij, three float64
 
@@ -30,47 +33,70 @@ class StepReport:
     timings: dict[str, float] = field(default_factory=dict)  # seconds per phase
 
 
+@dataclass(frozen=True)
+class Fluid:
+    """The scalars every pass takes: fluid mass mf (one per scene), support H, rest density rho0."""
+    mf: float
+    h: float
+    rho0: float
+
+
+class PairCache:
+    """The budgeted store of the pair cache mf grad W_ij, (n, 3, K) in the fluid lists' layout.
+
+    `buffer(nl)` hands the filling pass a buffer for the current lists (or `be.NO_PAIRS` when it
+    would exceed `solver.pair_cache_mb`); the pass returns it filled, and the method hands that
+    value to the solves at the same positions. Nothing here says whether it is valid: the value
+    returned by the filling pass is."""
+
+    def __init__(self, be: Backend, budget_mb: float):
+        self.be = be
+        self.budget = budget_mb * 2.0**20
+        self._store = be.NO_PAIRS
+
+    def buffer(self, nl):
+        n, k = nl.fluid.shape
+        if n == 0 or PAIR_CACHE_BYTES * n * k > self.budget:
+            self._store = self.be.NO_PAIRS
+        elif self._store.shape != (n, 3, k):   # first use, or the list stride grew
+            self._store = self.be.pair_buffer(n, k)
+        return self._store
+
+    @property
+    def nbytes(self) -> int:
+        return self._store.nbytes
+
+
+def _arrays(obj):
+    """The arrays in a (nested) scratch dataclass."""
+    if is_dataclass(obj):
+        for f in fields(obj):
+            yield from _arrays(getattr(obj, f.name))
+    elif hasattr(obj, "nbytes"):
+        yield obj
+
+
 class Method:
-    """Base class: owns the scratch arrays and the per-step timers; subclasses implement step()."""
+    """Base class; subclasses set `name`, `phases` and implement `step()` (and `prepare()`)."""
 
     name = ""
     phases: tuple[str, ...] = ()
 
-    def __init__(self, scene: Scene, state: ParticleState, boundary: Boundary, search: NeighbourSearch):
+    def __init__(self, scene: Scene, state: ParticleState, boundary: Boundary, search, be: Backend, mf: float):
         self.scene = scene
         self.state = state
         self.boundary = boundary
         self.search = search
-        r = scene.particle_radius
-        self.h = 4.0 * r
-        self.rho0 = float(scene.density0)
-        self.g = np.asarray(scene.gravity, dtype=np.float64)
+        self.be = be
         self.cfg = scene.solver
-        n = state.n
-        # one fluid mass (one rest density and radius per scene): the passes take it as a scalar
-        self.mf = float(state.m[0]) if n else 0.0
-        if n and not np.all(state.m == self.mf):
-            raise ValueError("all fluid particles must have the same mass")
-        # per-step scratch (valid only inside a step, in the current particle order)
-        self.rho = np.zeros(n)
-        self.alpha = np.zeros(n)
-        self.lam = np.zeros(n)
-        self.err = np.zeros(n)
-        self.n_nbrs = np.zeros(n, dtype=np.int32)
-        self.k = np.zeros(n)
-        self.drho = np.zeros(n)
-        self.scratch_v = np.zeros((n, 3))
-        self.gb = np.zeros((n, 3))                  # sum_b m_b grad W_ib, for the pressure solves
-        # the pair cache mf grad W_ij (sph_passes.NO_PAIR_CACHE when off or not filled at the
-        # current positions): `pair_cache_to_fill()` hands it to the filling pass, the pressure
-        # solves read `pair_grad`, and every neighbour search invalidates it
-        self.pair_grad = NO_PAIR_CACHE
-        self._pair_store = NO_PAIR_CACHE
+        self.fluid = Fluid(float(mf), 4.0 * scene.particle_radius, float(scene.density0))
+        self.g = be.asarray(scene.gravity)
+        self.pairs = PairCache(be, self.cfg.pair_cache_mb)
         state.zeros("pressure")                     # output field, follows reordering
         self.dt_prev: float | None = None
         self.report = StepReport()
 
-    # -- helpers ------------------------------------------------------------------------------
+    # -- bookkeeping --------------------------------------------------------------------------
     @contextmanager
     def timer(self, phase: str):
         t0 = time.perf_counter()
@@ -79,43 +105,54 @@ class Method:
         finally:
             self.report.timings[phase] = self.report.timings.get(phase, 0.0) + time.perf_counter() - t0
 
-    def neighbour_search(self, *follow: np.ndarray) -> tuple[np.ndarray, ...]:
+    def begin(self, dt: float) -> StepReport:
+        self.report = StepReport(dt=dt)
+        return self.report
+
+    def end(self, dt: float, dens) -> StepReport:
+        """The end-of-step density errors (of `dens`, at the final positions); dt becomes dt_prev."""
+        rep = self.report
+        rep.density_error_mean, rep.density_error_max = self.density_errors(dens)
+        self.dt_prev = dt
+        return rep
+
+    def density_errors(self, dens) -> tuple[float, float]:
+        """(mean positive, max) density error of a density pass's result."""
+        be, n = self.be, self.state.n
+        return be.mean(dens.err), (be.max(dens.rho) / self.fluid.rho0 - 1.0) if n else 0.0
+
+    @property
+    def lists(self):
+        """The current neighbour lists (NeighbourLists)."""
+        return self.search.lists
+
+    def neighbour_search(self, *follow):
         """Sort the fluid by cell at the current positions and rebuild the lists.
 
         The state is permuted in place; extra arrays passed in `follow` are returned permuted.
         """
-        self.pair_grad = NO_PAIR_CACHE
         with self.timer("neighbourSearch"):
             perm = self.search.update(self.state.x)
             self.state.permute(perm)
-            return tuple(np.take(a, perm, axis=0) for a in follow)
+            return tuple(self.be.take(a, perm) for a in follow)
 
-    def lists(self):
-        """(x_b, m_b, nf, cf, nb, cb): everything a pass needs to see neighbours and walls."""
-        nl = self.search.lists
-        return self.boundary.x, self.boundary.m, nl.fluid, nl.fluid_count, nl.boundary, nl.boundary_count
-
-    def pair_cache_to_fill(self) -> np.ndarray:
-        """The pair cache for this step's lists, to hand to the pass that fills it, or
-        NO_PAIR_CACHE when it would exceed `solver.pair_cache_mb`. Marks it valid (`pair_grad`):
-        call it only for a pass at the positions the following solves use."""
-        n, k = self.search.lists.fluid.shape
-        if n == 0 or PAIR_CACHE_BYTES * n * k > self.cfg.pair_cache_mb * 2.0**20:
-            self._pair_store = self.pair_grad = NO_PAIR_CACHE
-            return NO_PAIR_CACHE
-        if self._pair_store.shape != (n, 3, k):   # first use, or the list stride grew
-            self._pair_store = np.empty((n, 3, k))
-        self.pair_grad = self._pair_store
-        return self.pair_grad
+    @property
+    def nbytes(self) -> int:
+        """Memory of the method's own arrays: its scratch container and the pair cache."""
+        unique = {id(a): a for a in (*_arrays(self.data), self.pairs._store)}
+        return sum(int(a.nbytes) for a in unique.values())
 
     @property
     def pair_cache_nbytes(self) -> int:
         """Memory held by the pair cache (0 when it is off or over its budget)."""
-        return self._pair_store.nbytes
+        return self.pairs.nbytes
 
-    def density_errors(self) -> tuple[float, float]:
-        """(mean positive, max) density error of the last `density_factor_lambda` evaluation."""
-        return mean(self.err), (float(self.rho.max()) / self.rho0 - 1.0) if len(self.rho) else 0.0
+    def state_dict(self) -> dict:
+        """The method's scalars across steps (its per-particle memory lives in the ParticleState)."""
+        return {"dt_prev": self.dt_prev}
+
+    def load_state_dict(self, d: dict) -> None:
+        self.dt_prev = None if d["dt_prev"] is None else float(d["dt_prev"])
 
     # -- interface ----------------------------------------------------------------------------
     def prepare(self) -> None:
@@ -124,6 +161,6 @@ class Method:
     def step(self, dt: float) -> StepReport:
         raise NotImplementedError
 
-    def density(self) -> np.ndarray:
+    def density(self):
         """Density at the current positions (valid after prepare() and after every step)."""
-        return self.rho
+        raise NotImplementedError

@@ -9,15 +9,28 @@ PF made less compressible by two DFSPH additions:
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 from .base import StepReport
-from .dfsph import divergence_solve
-from .pf import ProjectiveMethod, pd_solve
-from .sph_passes import NO_DISPLACEMENT
+from .pf import PFData, ProjectiveMethod
+from .solves import SolveScratch, divergence_solve
+
+
+@dataclass
+class IPSPHData(PFData):
+    """PF's scratch plus the divergence solve's."""
+    solve: SolveScratch = None
+
+    @classmethod
+    def allocate(cls, be, n):
+        base = PFData.allocate(be, n)
+        return cls(**vars(base), solve=SolveScratch.allocate(be, n))
 
 
 class IPSPH(ProjectiveMethod):
     name = "ipsph"
     phases = ("neighbourSearch", "solvePDConstraints", "xsph", "divergenceSolve")
+    Data = IPSPHData
 
     def __init__(self, *args):
         super().__init__(*args)
@@ -25,23 +38,24 @@ class IPSPH(ProjectiveMethod):
         self.state.zeros("pd_warm", (3,))  # the last step's final PF displacement d(Lam) (warm start)
 
     def step(self, dt: float) -> StepReport:
-        self.report = rep = StepReport(dt=dt)
-        st, cfg = self.state, self.cfg
+        be, st, d, cfg, div = self.be, self.state, self.data, self.cfg.ipsph, self.cfg.divergence
+        rep = self.begin(dt)
+        tol = cfg.density_error_pct / 100.0
         x_old = self.inertial_target(dt)
         with self.timer("solvePDConstraints"):
-            rep.pd_passes, err = pd_solve(self, dt, cfg.ipsph_min_passes, cfg.ipsph_max_passes,
-                                          cfg.ipsph_density_error_pct / 100.0, cfg.ipsph_warm_start)
-            rep.solver_maxed += rep.pd_passes >= cfg.ipsph_max_passes and err > cfg.ipsph_density_error_pct / 100.0
+            rep.pd_passes, err = self.project(dt, cfg.min_passes, cfg.max_passes, tol, cfg.warm_start)
+            rep.solver_maxed += rep.pd_passes >= cfg.max_passes and err > tol
         with self.timer("xsph"):
-            # XSPH also sums this step's PF displacement for the next step's warm start (if on)
-            # and fills the pair cache for the divergence solve at the same positions
-            self.projected_velocities(dt, x_old, st.pd_warm if cfg.ipsph_warm_start > 0.0 else NO_DISPLACEMENT,
-                                      fill_pair_cache=cfg.divergence_solve)
-        if cfg.divergence_solve:
+            # also sums this step's PF displacement for the next warm start (if on) and fills the
+            # pair cache for the divergence solve at the same positions
+            pairs = self.velocities(dt, x_old, st.pd_warm if cfg.warm_start > 0.0 else None,
+                                    fill_pairs=div.enabled)
+        if div.enabled:
             with self.timer("divergenceSolve"):
-                rep.divergence_iterations, rep.divergence_error, maxed = divergence_solve(self, dt, st.k_div, self.drho)
+                rep.divergence_iterations, rep.divergence_error, maxed = divergence_solve(
+                    be, self.fluid, st.x, st.v, d.dens, self.lists, pairs, st.k_div, d.solve, dt, self.dt_prev,
+                    div, rate=d.drho)
                 rep.solver_maxed += maxed
-        st.pressure[:] = self.pf_pressure(dt) + st.k_div * self.rho * self.rho
-        rep.density_error_mean, rep.density_error_max = self.density_errors()
-        self.dt_prev = dt
-        return rep
+        be.pf_pressure(st.pressure, st.pd_lambda, self.fluid.rho0, dt)
+        be.stiffness_pressure(st.pressure, st.k_div, d.dens.rho, add=True)
+        return self.end(dt, d.dens)

@@ -1,0 +1,88 @@
+"""The backend seam: what a method may ask of the machine its particles live on.
+
+A `Backend` owns the particle and scratch arrays (allocation, host transfer), every
+per-particle pass (their bodies are written once, in `bodies`) and the few vector operations a
+step needs. A method holds a backend and calls only these; it never touches particle arrays with
+numpy, so the same method code runs on any backend. `CPUBackend` (`cpu.py`, Numba `prange`) is
+the one backend today; a GPU backend subclasses `Backend`, launches the same bodies as CUDA
+device functions, and is registered in `ipsph.backends.BACKENDS`.
+
+Conventions every backend keeps: float64 arrays, particles along the first axis; passes write
+index i from the work item of particle i only (no atomics); reductions in a fixed order, so the
+same inputs give the same bits whatever the thread count. Pass arguments mirror the launchers in
+`cpu_passes`; `nl` is the current `NeighbourLists`, `walls` the `Boundary`, `dens` a `Densities`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+from typing import Any
+
+Array = Any  # a backend array (numpy on the CPU backend)
+
+
+@dataclass
+class Densities:
+    """What the density pass leaves at one set of positions (method.md section 1): density rho,
+    DFSPH factor alpha, PF multiplier lam, density error err = max(rho/rho0 - 1, 0), neighbour
+    count n_nbrs, and the walls' gradient sum gb_i = sum_b m_b grad W_ib that every later pass
+    at the same positions takes the walls from."""
+    rho: Array
+    alpha: Array
+    lam: Array
+    err: Array
+    n_nbrs: Array
+    gb: Array
+
+    @classmethod
+    def allocate(cls, be: "Backend", n: int) -> "Densities":
+        return cls(be.zeros(n), be.zeros(n), be.zeros(n), be.zeros(n), be.zeros(n, dtype="int32"),
+                   be.zeros(n, (3,)))
+
+    def arrays(self) -> tuple:
+        return tuple(getattr(self, f.name) for f in fields(self))
+
+
+class Backend:
+    """The interface (every method raises here; `CPUBackend` implements it)."""
+
+    name = ""
+    NO_PAIRS: Array = None          # the empty pair cache: a pass given it neither fills nor reads it
+    NO_DISPLACEMENT: Array = None   # viscosity(..., disp=NO_DISPLACEMENT): no PF displacement
+
+    # -- arrays -------------------------------------------------------------------------------------
+    def zeros(self, n: int, shape=(), dtype="float64") -> Array: raise NotImplementedError
+    def empty(self, n: int, shape=(), dtype="float64") -> Array: raise NotImplementedError
+    def asarray(self, host, dtype="float64") -> Array: raise NotImplementedError      # host -> backend
+    def to_host(self, a: Array): raise NotImplementedError                           # backend -> numpy
+    def pair_buffer(self, n: int, k: int) -> Array: raise NotImplementedError         # (n, 3, k)
+
+    # -- vector operations --------------------------------------------------------------------------
+    def fill(self, a, value: float) -> None: raise NotImplementedError
+    def copy(self, dst, src) -> None: raise NotImplementedError
+    def axpy(self, y, alpha: float, x) -> None: raise NotImplementedError  # y += alpha x
+    def scale(self, a, c: float) -> None: raise NotImplementedError        # a *= c
+    def take(self, a, perm) -> Array: raise NotImplementedError            # new[i] = a[perm[i]]
+    def untake(self, a, perm) -> None: raise NotImplementedError           # a[perm[i]] = old a[i], in place
+    def mean(self, a) -> float: raise NotImplementedError
+    def mean_positive(self, a) -> float: raise NotImplementedError         # mean of max(a, 0)
+    def max(self, a) -> float: raise NotImplementedError
+    def speed_energy(self, v, m) -> tuple[float, float]: raise NotImplementedError
+    def first_unhealthy(self, x, v, lo, hi) -> int: raise NotImplementedError
+    def pf_pressure(self, out, lam, rho0: float, dt: float) -> None: raise NotImplementedError
+    def stiffness_pressure(self, out, k, rho, add: bool = False) -> None: raise NotImplementedError
+
+    # -- per-particle passes (bodies.*_at) ----------------------------------------------------------
+    def densities(self, x, mf, walls, nl, h, rho0, out: Densities, pairs) -> Array: raise NotImplementedError
+    def divergence_residual(self, x, v, mf, dens, nl, pairs, h, dt, drho, k) -> None: raise NotImplementedError
+    def density_residual(self, x, v, mf, dens, nl, pairs, h, rho0, dt, err, k) -> None: raise NotImplementedError
+    def apply_stiffness(self, x, mf, dens, nl, pairs, h, k, dt, v, k_total) -> None: raise NotImplementedError
+    def viscosity(self, x, v, mf, dens, lam, nl, h, zeta, nu_dt, v_out, drho, disp, pairs) -> Array:
+        raise NotImplementedError
+    def pf_global(self, x, s, mf, dens, nl, h, rho0, a, x_out, lam_sum) -> None: raise NotImplementedError
+    def advance(self, x, v, dt, g, x_old) -> None: raise NotImplementedError
+    def displacement_velocity(self, x, x_old, dt, v) -> None: raise NotImplementedError
+    def accelerate(self, v, dt, g) -> None: raise NotImplementedError
+    def warm_stiffness(self, k_total, scale, rate, n_nbrs, min_nbrs, warm) -> None: raise NotImplementedError
+
+    # -- neighbour search ---------------------------------------------------------------------------
+    def neighbour_search(self, support: float, boundary): raise NotImplementedError

@@ -1,0 +1,354 @@
+"""Per-particle physics, written once: the body of every pass for one fluid particle i.
+
+Each body is a plain function of i (and arrays and scalars): it gathers what it needs of i's
+neighbours into a scratch block `buf` the launcher hands it, evaluates the kernel over that
+contiguous block, and writes index i of its outputs only. Bodies allocate nothing, read no
+globals and call only other bodies and the kernel formulas (`ipsph.kernels`), so the CPU
+launcher (`cpu_passes`: `prange` over blocks of particles) inlines them today and a CUDA
+launcher can compile the same functions as device functions (with `buf` a thread-local array).
+
+Notation (method.md sections 1-3): fluid neighbours j (one mass mf, a scalar), walls b with
+effective mass m_b = rho0 Psi_b; x_ij = x_i - x_j, r_ij = |x_ij|, grad W_ij = g(r_ij) x_ij.
+The lists: nf, cf (fluid indices, counts), nb, cb (walls). The pair cache pair_grad[i, :, k] =
+mf grad W_ij, (n, 3, K), used only when it has a row per particle.
+
+Why two stages per particle: the second loop has no indirection, so LLVM turns it into SIMD
+code (the kernel's sqrt, division and polynomial on 4 neighbours at once), twice as fast per
+pass as one scalar loop that does both (docs/performance.md).
+"""
+import numpy as np
+from numba import njit
+
+from ..kernels import grad_w_factor, w
+
+FAST = {"contract", "arcp", "reassoc"}  # no nnan/ninf: NaN checks keep working
+
+# buffer rows: x_ij components, then per-neighbour scalars
+DX, DY, DZ, C0, C1, C2, C3, C4, C5 = 0, 1, 2, 3, 4, 5, 6, 7, 8
+
+# rows of scratch each body needs per neighbour slot (the launcher allocates them)
+DENSITY_ROWS, RATE_ROWS, STIFFNESS_ROWS, VISCOSITY_ROWS, PF_GLOBAL_ROWS = 6, 7, 4, 9, 4
+
+
+# -- gathers -------------------------------------------------------------------------------------
+@njit(inline="always")
+def _gather_xf(i, x, nf, cf, buf):
+    """buf[DX..DZ, :n_f] = x_i - x_j over the fluid neighbours; returns n_f."""
+    n_f = cf[i]
+    xi0, xi1, xi2 = x[i, 0], x[i, 1], x[i, 2]
+    for k in range(n_f):
+        j = nf[i, k]
+        buf[DX, k] = xi0 - x[j, 0]
+        buf[DY, k] = xi1 - x[j, 1]
+        buf[DZ, k] = xi2 - x[j, 2]
+    return n_f
+
+
+@njit(inline="always")
+def _gather_x(i, x, xb, nf, cf, nb, cb, buf):
+    """buf[DX..DZ, :n_f + n_b] = x_i - x_j (fluid first, then boundary); returns (n_f, n_b)."""
+    n_f = _gather_xf(i, x, nf, cf, buf)
+    n_b = cb[i]
+    xi0, xi1, xi2 = x[i, 0], x[i, 1], x[i, 2]
+    for k in range(n_b):
+        b = nb[i, k]
+        buf[DX, n_f + k] = xi0 - xb[b, 0]
+        buf[DY, n_f + k] = xi1 - xb[b, 1]
+        buf[DZ, n_f + k] = xi2 - xb[b, 2]
+    return n_f, n_b
+
+
+@njit(inline="always")
+def _gather_rate_f(i, v, nf, n_f, buf):
+    """buf[C1..C3] = v_i - v_j over the fluid neighbours: what D rho_i/Dt needs."""
+    vi0, vi1, vi2 = v[i, 0], v[i, 1], v[i, 2]
+    for k in range(n_f):
+        j = nf[i, k]
+        buf[C1, k] = vi0 - v[j, 0]
+        buf[C2, k] = vi1 - v[j, 1]
+        buf[C3, k] = vi2 - v[j, 2]
+
+
+# -- vectorised sums over a gathered neighbourhood -------------------------------------------------
+@njit(inline="always", fastmath=FAST)
+def _weighted_gradient(n, buf, row, h):
+    """sum_k buf[row, k] grad W(x_ik) over a gathered neighbourhood (the vectorised loop)."""
+    a0 = 0.0
+    a1 = 0.0
+    a2 = 0.0
+    for k in range(n):
+        d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
+        f = buf[row, k] * grad_w_factor(np.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
+        a0 += f * d0
+        a1 += f * d1
+        a2 += f * d2
+    return a0, a1, a2
+
+
+@njit(inline="always", fastmath=FAST)
+def _density_sums(n, buf, h, rho_self, keep_f):
+    """density_at's loop over fluid and walls (one loop: two were measured slower);
+    rho starts from rho_self; with `keep_f` (a constant at each call site) f = m_k g(r_ik) is
+    also left in buf[C2]."""
+    rho_w = rho_self
+    g0 = 0.0
+    g1 = 0.0
+    g2 = 0.0
+    b0 = 0.0
+    b1 = 0.0
+    b2 = 0.0
+    s2 = 0.0
+    nn = 0.0
+    for k in range(n):
+        d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
+        r2 = d0 * d0 + d1 * d1 + d2 * d2
+        r = np.sqrt(r2)
+        mk = buf[C0, k]
+        fluid = buf[C1, k]
+        rho_w += mk * w(r, h)
+        f = mk * grad_w_factor(r, h)
+        g0 += f * d0
+        g1 += f * d1
+        g2 += f * d2
+        fb = (1.0 - fluid) * f
+        b0 += fb * d0
+        b1 += fb * d1
+        b2 += fb * d2
+        s2 += fluid * f * f * r2
+        nn += 1.0 if r < h else 0.0
+        if keep_f:
+            buf[C2, k] = f
+    return rho_w, g0, g1, g2, b0, b1, b2, s2, nn
+
+
+@njit(inline="always", fastmath=FAST)
+def _viscosity_sums(i, n_f, buf, h, eps, mf, standard, fill, pair_grad):
+    """viscosity_at's neighbour loop; with `fill` (a constant at each call site) it also
+    stores pair_grad[i, :, k] = mf grad W_ij."""
+    a0 = 0.0
+    a1 = 0.0
+    a2 = 0.0
+    s0 = 0.0
+    s1 = 0.0
+    s2 = 0.0
+    p0 = 0.0
+    p1 = 0.0
+    p2 = 0.0
+    dr = 0.0
+    for k in range(n_f):
+        d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
+        r2 = d0 * d0 + d1 * d1 + d2 * d2
+        r = np.sqrt(r2)
+        u0, u1, u2 = buf[C1, k], buf[C2, k], buf[C3, k]
+        inv_rho = buf[C4, k]
+        wij = inv_rho * w(r, h)
+        a0 += wij * u0
+        a1 += wij * u1
+        a2 += wij * u2
+        g = grad_w_factor(r, h)
+        ud = u0 * d0 + u1 * d1 + u2 * d2
+        dr += g * ud
+        if standard:  # loop-invariant: LLVM unswitches it, so nu = 0 pays no division
+            sv = inv_rho * ud * g / (r2 + eps)
+            s0 += sv * d0
+            s1 += sv * d1
+            s2 += sv * d2
+        if fill:
+            gm = mf * g
+            pair_grad[i, 0, k] = gm * d0
+            pair_grad[i, 1, k] = gm * d1
+            pair_grad[i, 2, k] = gm * d2
+        gl = buf[C5, k] * g
+        p0 += gl * d0
+        p1 += gl * d1
+        p2 += gl * d2
+    return a0, a1, a2, s0, s1, s2, p0, p1, p2, dr
+
+
+# -- the bodies ----------------------------------------------------------------------------------
+@njit(inline="always", fastmath=FAST)
+def density_at(i, x, mf, xb, mb, nf, cf, nb, cb, h, rho0, w0, fill, buf, rho, alpha, lam, err, n_nbrs, gb,
+               pair_grad):
+    """Density, DFSPH factor, PF multiplier, density error and wall gradient of particle i:
+
+        rho_i   = mf W(0) + sum_j mf W_ij + sum_b m_b W_ib           (w0 = W(0))
+        gb_i    = sum_b m_b grad W_ib     (the walls' part: fixed while positions are, so the
+                                           pressure solves and the viscosity pass reuse it)
+        g_i     = sum_j mf grad W_ij + gb_i
+        alpha_i = 1 / max(|g_i|^2 + sum_j |mf grad W_ij|^2, 1e-5)           [BK17 eq. 9]
+        C_i     = max(rho_i / rho0 - 1, 0)                                  [WKB16, unilateral]
+        lam_i   = -C_i / (sum_k |G_ik|^2 + 1e-6),  sum_k |G_ik|^2 = (|g_i|^2 + sum_j |mf grad W_ij|^2) / rho0^2
+        err_i   = C_i;  n_nbrs_i = |{j : r_ij < H}| + |{b : r_ib < H}|
+        pair_grad[i, :, k] = mf grad W_ij   (only with `fill`)
+    """
+    n_f, n_b = _gather_x(i, x, xb, nf, cf, nb, cb, buf)
+    for k in range(n_f):
+        buf[C0, k] = mf
+        buf[C1, k] = 1.0  # fluid neighbours enter sum_j |m_j grad W_ij|^2, walls enter gb
+    for k in range(n_b):
+        buf[C0, n_f + k] = mb[nb[i, k]]
+        buf[C1, n_f + k] = 0.0
+    if fill:  # two copies of the loop (see viscosity_at), one also keeping f in buf[C2]
+        rho_i, g0, g1, g2, b0, b1, b2, s2, nn = _density_sums(n_f + n_b, buf, h, mf * w0, True)
+    else:
+        rho_i, g0, g1, g2, b0, b1, b2, s2, nn = _density_sums(n_f + n_b, buf, h, mf * w0, False)
+    if fill:
+        for k in range(n_f):
+            f = buf[C2, k]
+            pair_grad[i, 0, k] = f * buf[DX, k]
+            pair_grad[i, 1, k] = f * buf[DY, k]
+            pair_grad[i, 2, k] = f * buf[DZ, k]
+    sum_sq = g0 * g0 + g1 * g1 + g2 * g2 + s2
+    rho[i] = rho_i
+    alpha[i] = 1.0 / max(sum_sq, 1e-5)
+    c = max(rho_i / rho0 - 1.0, 0.0)
+    err[i] = c
+    lam[i] = -c / (sum_sq / (rho0 * rho0) + 1e-6)
+    n_nbrs[i] = int(nn)
+    gb[i, 0] = b0
+    gb[i, 1] = b1
+    gb[i, 2] = b2
+
+
+@njit(inline="always", fastmath=FAST)
+def density_rate_at(i, x, v, mf, gb, nf, cf, pair_grad, cached, h, buf):
+    """D rho_i / Dt = sum_j mf (v_i - v_j) . grad W_ij + v_i . gb_i   [BK17 eq. 4; gb: density_at].
+
+    From the pair cache when `cached`, else from the positions."""
+    n_f = cf[i]
+    _gather_rate_f(i, v, nf, n_f, buf)
+    walls = v[i, 0] * gb[i, 0] + v[i, 1] * gb[i, 1] + v[i, 2] * gb[i, 2]
+    rate = 0.0
+    if cached:
+        g = pair_grad[i]
+        for k in range(n_f):
+            rate += buf[C1, k] * g[0, k] + buf[C2, k] * g[1, k] + buf[C3, k] * g[2, k]
+        return rate + walls
+    _gather_xf(i, x, nf, cf, buf)
+    for k in range(n_f):
+        d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
+        f = grad_w_factor(np.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
+        rate += f * (buf[C1, k] * d0 + buf[C2, k] * d1 + buf[C3, k] * d2)
+    return mf * rate + walls
+
+
+@njit(inline="always", fastmath=FAST)
+def divergence_residual_at(i, x, v, mf, gb, nf, cf, pair_grad, cached, h, alpha, n_nbrs, dt, buf, drho, k):
+    """Divergence-solve residual and stiffness [BK17 Alg. 2]:
+    drho_i = max(D rho_i/Dt, 0), zero for particles with < 20 neighbours; k_i = alpha_i drho_i / dt."""
+    d = 0.0
+    if n_nbrs[i] >= 20:
+        d = max(density_rate_at(i, x, v, mf, gb, nf, cf, pair_grad, cached, h, buf), 0.0)
+    drho[i] = d
+    k[i] = alpha[i] * d / dt
+
+
+@njit(inline="always", fastmath=FAST)
+def density_residual_at(i, x, v, mf, gb, nf, cf, pair_grad, cached, h, rho, alpha, rho0, dt, buf, rho_err, k):
+    """Density-solve residual and stiffness [BK17 Alg. 3]:
+    rho*_i = max(rho_i + dt D rho_i/Dt, rho0);  rho_err_i = rho*_i - rho0;  k_i = alpha_i rho_err_i / dt^2."""
+    rate = density_rate_at(i, x, v, mf, gb, nf, cf, pair_grad, cached, h, buf)
+    e = max(rho[i] + dt * rate, rho0) - rho0
+    rho_err[i] = e
+    k[i] = alpha[i] * e / (dt * dt)
+
+
+@njit(inline="always", fastmath=FAST)
+def stiffness_at(i, x, mf, gb, nf, cf, pair_grad, cached, h, k, dt, buf, v, k_total):
+    """v_i -= dt [sum_j mf (k_i + k_j) grad W_ij + k_i gb_i];  k_total_i += k_i.
+
+    In place: reads k of the neighbours and writes v_i, k_total_i only. mf grad W_ij comes from
+    the pair cache when `cached`, else from the positions."""
+    ki = k[i]
+    n_f = cf[i]
+    for n in range(n_f):
+        buf[C0, n] = ki + k[nf[i, n]]
+    if cached:
+        g = pair_grad[i]
+        a0 = 0.0
+        a1 = 0.0
+        a2 = 0.0
+        for n in range(n_f):
+            s = buf[C0, n]
+            a0 += s * g[0, n]
+            a1 += s * g[1, n]
+            a2 += s * g[2, n]
+    else:
+        _gather_xf(i, x, nf, cf, buf)
+        a0, a1, a2 = _weighted_gradient(n_f, buf, C0, h)
+        a0 *= mf
+        a1 *= mf
+        a2 *= mf
+    v[i, 0] -= dt * (a0 + ki * gb[i, 0])
+    v[i, 1] -= dt * (a1 + ki * gb[i, 1])
+    v[i, 2] -= dt * (a2 + ki * gb[i, 2])
+    k_total[i] += ki
+
+
+@njit(inline="always", fastmath=FAST)
+def viscosity_at(i, x, v, mf, rho, gb, lam, nf, cf, h, zeta, nu_dt, eps, standard, with_disp, fill, buf,
+                 v_out, drho, disp, pair_grad):
+    """The viscosity pass for particle i: XSPH filter [SB12] and SPlisHSPlasH's "Standard"
+    viscosity, explicit:
+
+        v_i <- v_i - zeta sum_j (mf / rho_j) (v_i - v_j) W_ij
+                   + 10 nu dt sum_j (mf / rho_j) (v_ij . x_ij) / (r_ij^2 + 0.01 H^2) grad W_ij
+
+    (Monaghan 2005's SPH Laplacian with the 2 (d + 2) = 10 of 3D, as SPlisHSPlasH's
+    Viscosity_Standard without its wall term; nu_dt = nu dt, eps = 0.01 H^2). Walls take no part.
+    By-products of the same neighbour loop:
+        drho_i = D rho_i/Dt of the input velocities (walls through gb_i);
+        disp_i = sum_j mf (lam_i + lam_j) grad W_ij + lam_i gb_i, with `with_disp`: rho0 times
+                 the PF displacement of the multipliers lam (IPSPH's next warm start);
+        pair_grad[i, :, k] = mf grad W_ij, with `fill`.
+    """
+    n_f = _gather_xf(i, x, nf, cf, buf)
+    _gather_rate_f(i, v, nf, n_f, buf)
+    li = lam[i] if with_disp else 0.0
+    for k in range(n_f):
+        j = nf[i, k]
+        buf[C4, k] = 1.0 / rho[j]
+        buf[C5, k] = li + lam[j] if with_disp else 0.0
+    vi0, vi1, vi2 = v[i, 0], v[i, 1], v[i, 2]
+    if fill:  # two copies of the loop, one with the cache's stores (a runtime test inside
+        #       the loop stops LLVM vectorising it: 1.7 x the time of the pass)
+        a0, a1, a2, s0, s1, s2, p0, p1, p2, dr = _viscosity_sums(i, n_f, buf, h, eps, mf, standard,
+                                                                 True, pair_grad)
+    else:
+        a0, a1, a2, s0, s1, s2, p0, p1, p2, dr = _viscosity_sums(i, n_f, buf, h, eps, mf, standard,
+                                                                 False, pair_grad)
+    drho[i] = mf * dr + vi0 * gb[i, 0] + vi1 * gb[i, 1] + vi2 * gb[i, 2]
+    zm = zeta * mf
+    nm = 10.0 * nu_dt * mf
+    v_out[i, 0] = vi0 - zm * a0 + nm * s0
+    v_out[i, 1] = vi1 - zm * a1 + nm * s1
+    v_out[i, 2] = vi2 - zm * a2 + nm * s2
+    if with_disp:
+        disp[i, 0] = mf * p0 + li * gb[i, 0]
+        disp[i, 1] = mf * p1 + li * gb[i, 1]
+        disp[i, 2] = mf * p2 + li * gb[i, 2]
+
+
+@njit(inline="always", fastmath=FAST)
+def pf_global_at(k, x, s, mf, gb, nf, cf, h, rho0, lam, a, buf, x_out, lam_sum):
+    """One global step of Projective Fluids [WKB16] for particle k, with the constraint
+    gradients of the local step (density_at, just before, at the same positions):
+
+        d_k   = sum_{c in {k} u N(k)} lam_c G_ck
+              = (1/rho0) [ sum_j mf (lam_k + lam_j) grad W_kj + lam_k gb_k ]
+        x_k  <- (mf s_k + a n_k (x_k + d_k)) / (mf + a n_k),        a = dt^2 k_s, n_k = |N(k)| + 1
+        Lam_k <- beta_k (Lam_k + lam_k),  beta_k = a n_k / (mf + a n_k)    (pressure bookkeeping)
+
+    The closed-form solve of PF's diagonal system as a gather: no atomics, deterministic.
+    """
+    n_f = _gather_xf(k, x, nf, cf, buf)
+    lk = lam[k]
+    for n in range(n_f):
+        buf[C0, n] = lk + lam[nf[k, n]]
+    d0, d1, d2 = _weighted_gradient(n_f, buf, C0, h)
+    an = a * (cf[k] + 1)  # n_k: the lists were built at s
+    inv = 1.0 / (mf + an)
+    x_out[k, 0] = (mf * s[k, 0] + an * (x[k, 0] + (mf * d0 + lk * gb[k, 0]) / rho0)) * inv
+    x_out[k, 1] = (mf * s[k, 1] + an * (x[k, 1] + (mf * d1 + lk * gb[k, 1]) / rho0)) * inv
+    x_out[k, 2] = (mf * s[k, 2] + an * (x[k, 2] + (mf * d2 + lk * gb[k, 2]) / rho0)) * inv
+    lam_sum[k] = an * inv * (lam_sum[k] + lk)

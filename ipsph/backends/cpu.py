@@ -1,0 +1,113 @@
+"""The CPU backend: numpy arrays, Numba `prange` launchers (`cpu_passes`), serial reductions."""
+from __future__ import annotations
+
+import numpy as np
+
+from . import cpu_passes as P
+from .base import Backend, Densities
+
+
+class CPUBackend(Backend):
+    name = "cpu"
+    NO_PAIRS = P.NO_PAIR_CACHE
+    NO_DISPLACEMENT = P.NO_DISPLACEMENT
+
+    # -- arrays -------------------------------------------------------------------------------------
+    def zeros(self, n, shape=(), dtype="float64"):
+        return np.zeros((n, *shape), dtype=dtype)
+
+    def empty(self, n, shape=(), dtype="float64"):
+        return np.empty((n, *shape), dtype=dtype)
+
+    def asarray(self, host, dtype="float64"):
+        return np.ascontiguousarray(host, dtype=dtype)
+
+    def to_host(self, a):
+        return a
+
+    def pair_buffer(self, n, k):
+        return np.empty((n, 3, k))
+
+    # -- vector operations (numpy where it is the same arithmetic in the same order) ----------------
+    def fill(self, a, value):
+        a[:] = value
+
+    def copy(self, dst, src):
+        dst[:] = src
+
+    def axpy(self, y, alpha, x):
+        y += alpha * x
+
+    def scale(self, a, c):
+        a *= c
+
+    def take(self, a, perm):
+        return np.take(a, perm, axis=0)  # 2x faster than a[perm]
+
+    def untake(self, a, perm):
+        a[perm] = a.copy()
+
+    def mean(self, a):
+        return P.mean(a)
+
+    def mean_positive(self, a):
+        return P.mean_positive(a)
+
+    def max(self, a):
+        return float(a.max())
+
+    def speed_energy(self, v, m):
+        return P.speed_energy(v, m)
+
+    def first_unhealthy(self, x, v, lo, hi):
+        return P.first_unhealthy(x, v, lo, hi)
+
+    def pf_pressure(self, out, lam, rho0, dt):
+        out[:] = -rho0 * lam / (dt * dt)
+
+    def stiffness_pressure(self, out, k, rho, add=False):
+        if add:
+            out += k * rho * rho
+        else:
+            out[:] = k * rho * rho
+
+    # -- per-particle passes ------------------------------------------------------------------------
+    def densities(self, x, mf, walls, nl, h, rho0, out: Densities, pairs):
+        P.density_factor_lambda(x, mf, walls.x, walls.m, nl.fluid, nl.fluid_count, nl.boundary, nl.boundary_count,
+                                h, rho0, out.rho, out.alpha, out.lam, out.err, out.n_nbrs, out.gb, pairs)
+        return pairs
+
+    def divergence_residual(self, x, v, mf, dens, nl, pairs, h, dt, drho, k):
+        P.divergence_residual(x, v, mf, dens.gb, nl.fluid, nl.fluid_count, pairs, h, dens.alpha, dens.n_nbrs, dt,
+                              drho, k)
+
+    def density_residual(self, x, v, mf, dens, nl, pairs, h, rho0, dt, err, k):
+        P.density_residual(x, v, mf, dens.gb, nl.fluid, nl.fluid_count, pairs, h, dens.rho, dens.alpha, rho0, dt,
+                           err, k)
+
+    def apply_stiffness(self, x, mf, dens, nl, pairs, h, k, dt, v, k_total):
+        P.apply_stiffness(x, mf, dens.gb, nl.fluid, nl.fluid_count, pairs, h, k, dt, v, k_total)
+
+    def viscosity(self, x, v, mf, dens, lam, nl, h, zeta, nu_dt, v_out, drho, disp, pairs):
+        P.xsph(x, v, mf, dens.rho, dens.gb, lam, nl.fluid, nl.fluid_count, h, zeta, nu_dt, v_out, drho, disp, pairs)
+        return pairs
+
+    def pf_global(self, x, s, mf, dens, nl, h, rho0, a, x_out, lam_sum):
+        P.pf_global(x, s, mf, dens.gb, nl.fluid, nl.fluid_count, h, rho0, dens.lam, a, x_out, lam_sum)
+
+    def advance(self, x, v, dt, g, x_old):
+        P.advance(x, v, dt, g, x_old)
+
+    def displacement_velocity(self, x, x_old, dt, v):
+        P.displacement_velocity(x, x_old, dt, v)
+
+    def accelerate(self, v, dt, g):
+        P.accelerate(v, dt, g)
+
+    def warm_stiffness(self, k_total, scale, rate, n_nbrs, min_nbrs, warm):
+        P.warm_stiffness(k_total, scale, P.EVERY_PARTICLE if rate is None else rate, n_nbrs, min_nbrs, warm)
+
+    # -- neighbour search ---------------------------------------------------------------------------
+    def neighbour_search(self, support, boundary):
+        from ..neighbours import NeighbourSearch
+        return NeighbourSearch(support, boundary)

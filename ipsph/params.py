@@ -1,0 +1,265 @@
+"""Every declared fact the rest of ipsph is generated from.
+
+* `PARAMS`: every scene parameter, once: key path, type, default, unit, allowed values, one line
+  of doc. The model's dataclass defaults (`ipsph.model`), scene validation and `--set`
+  (`ipsph.scene`), `--help`, the CLI's choices and docs/scene-reference.md are generated from it.
+* `RENAMED`: keys that moved, old path -> new path; reading an old key is a one-line error that
+  names the new one.
+* `METHOD_NAMES`, `PHASES` (the timers a step reports, the stats.csv `ms_*` columns and the plot
+  bars), `OUTPUT_FIELDS`, `RENDER_VIEWS`.
+
+Adding a scene key: one `_P(...)` line here (and the field it lands in, in `ipsph.model`),
+then `python -m ipsph.scene > docs/scene-reference.md`.
+
+This module imports nothing from ipsph, so everything may import it.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+METHOD_NAMES = ("ipsph", "pf", "dfsph")  # simulation.method; ipsph.methods.METHODS implements each
+
+# A step's timed phases, in report order: timer name -> (short label, what it times). Each method
+# reports a subset (`Method.phases`); `Simulation.step` adds "step", the whole step.
+PHASES = {
+    "neighbourSearch": ("nbr", "cell sort, reordering and neighbour lists"),
+    "densities": ("rho", "density pass at the end-of-step positions (DFSPH)"),
+    "solvePDConstraints": ("PD", "Projective Fluids local/global passes (PF, IPSPH)"),
+    "xsph": ("xsph", "viscosity pass (XSPH, Standard viscosity)"),
+    "divergenceSolve": ("div", "divergence solve (DFSPH, IPSPH)"),
+    "densitySolve": ("dens", "DFSPH density solve"),
+}
+
+BOUNDARY_ROLES = ("container", "obstacle")  # boundary.role: fluid inside the surface, or around it
+OUTPUT_FIELDS = ("velocity", "density", "pressure", "mass", "id")
+# render.view: direction from the focal point to the camera, and the view-up vector (y is up)
+RENDER_VIEWS: dict[str, tuple[tuple[float, float, float], tuple[float, float, float]]] = {
+    "front": ((0.0, 0.0, 1.0), (0.0, 1.0, 0.0)),
+    "back": ((0.0, 0.0, -1.0), (0.0, 1.0, 0.0)),
+    "side": ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0)),
+    "top": ((0.0, 1.0, 0.0), (0.0, 0.0, -1.0)),
+    "iso": ((0.75, 0.55, 1.0), (0.0, 1.0, 0.0)),
+}
+AUTO = "auto"  # an optional value written as "auto" (or left out) means None: computed at run time
+
+@dataclass(frozen=True)
+class Param:
+    """One scene parameter.
+
+    path: dotted key path in the file (`fluid.velocity` is `velocity` in each [[fluid]] table).
+    kind: float | int | bool | choice | path | vec3 | range2 | fields.
+    target: where the value lands in the model: `time_step.dt_max` (Scene.time_step.dt_max),
+      `particle_radius` (Scene.particle_radius); for fluid/boundary keys, the FluidSpec /
+      BoundarySpec attribute (`transform.translate`). Empty: no direct model field.
+    lo/hi (+ lo_open/hi_open): allowed range, per component for vectors.
+    optional: the value may be None (key left out, or written "auto").
+    """
+    path: str
+    kind: str
+    default: Any
+    unit: str
+    doc: str
+    target: str = ""
+    lo: float | None = None
+    hi: float | None = None
+    lo_open: bool = False
+    hi_open: bool = False
+    choices: tuple[str, ...] | None = None
+    optional: bool = False
+    required: bool = False
+
+    @property
+    def key(self) -> str:
+        return self.path.rsplit(".", 1)[-1]
+
+
+_Z3 = (0.0, 0.0, 0.0)
+
+
+def _P(path, kind, default, unit, doc, target="", **kw) -> Param:
+    return Param(path, kind, default, unit, doc, target, **kw)
+
+
+def _transform(kind: str) -> tuple[Param, ...]:
+    """The placement keys every [[fluid]] and [[boundary]] table has (model.Transform)."""
+    return (
+        _P(f"{kind}.translate", "vec3", _Z3, "m", "Translation t in x' = R(S x) + t. For boxes, "
+           "applied to min and max.", "transform.translate"),
+        _P(f"{kind}.scale", "vec3", (1.0, 1.0, 1.0), "", "Scale S (per axis, > 0), applied first. "
+           "For boxes, applied to min and max.", "transform.scale", lo=0.0, lo_open=True),
+        _P(f"{kind}.rotate_axis", "vec3", (0.0, 1.0, 0.0), "", "Rotation axis (mesh only).",
+           "transform.rotate_axis"),
+        _P(f"{kind}.rotate_deg", "float", 0.0, "deg", "Rotation angle about rotate_axis (mesh only; "
+           "boxes are axis-aligned).", "transform.rotate_deg", lo=-360.0, hi=360.0),
+    )
+
+
+PARAMS: tuple[Param, ...] = (
+    # -- top level ------------------------------------------------------------------------------
+    _P("name", "str", None, "", "Scene name used in outputs and logs. Default: the scene file's "
+       "name without extension.", "name"),
+    _P("source", "str", None, "", "The scene file this scene was resolved from; written by "
+       "ipsph into saved scenes (run.json), not normally set by hand.", "source", optional=True),
+    # -- [simulation] ---------------------------------------------------------------------------
+    _P("simulation.method", "choice", "ipsph", "", "Pressure solver: ipsph (the paper's "
+       "method), pf (Projective Fluids) or dfsph (Divergence-Free SPH).", "method",
+       choices=METHOD_NAMES),
+    _P("simulation.particle_radius", "float", 0.025, "m", "Particle radius r; lattice spacing "
+       "d = 2r, kernel support H = 4r.", "particle_radius", lo=0.0, hi=1.0, lo_open=True),
+    _P("simulation.density0", "float", 1000.0, "kg/m^3", "Rest density rho0.", "density0",
+       lo=0.0, hi=1e5, lo_open=True),
+    _P("simulation.gravity", "vec3", (0.0, -9.81, 0.0), "m/s^2", "Gravitational acceleration "
+       "(y is up).", "gravity", lo=-1e3, hi=1e3),
+    _P("simulation.end_time", "float", 2.0, "s", "Simulated time at which the run stops.",
+       "end_time", lo=0.0, hi=1e6, lo_open=True),
+    _P("simulation.viscosity", "float", 0.01, "", "XSPH viscosity coefficient zeta "
+       "(0.01-0.03 typical; 0 disables it).", "viscosity", lo=0.0, hi=1.0),
+    _P("simulation.standard_viscosity", "float", 0.0, "m^2/s", "Kinematic viscosity nu of "
+       "SPlisHSPlasH's \"Standard\" viscosity (an explicit SPH viscous acceleration, "
+       "docs/method.md); 0 disables it. It also limits the step to H^2 / (60 nu). "
+       "SPlisHSPlasH scenes with viscosityMethod 1 set it.",
+       "standard_viscosity", lo=0.0, hi=10.0),
+    # -- [time_step] ----------------------------------------------------------------------------
+    _P("time_step.cfl_factor", "float", 1.0, "", "CFL factor lambda in "
+       "dt = lambda * 0.4 * d / max|v|.", "time_step.cfl_factor", lo=0.0, hi=2.5, lo_open=True),
+    _P("time_step.dt_min", "float", 1e-4, "s", "Smallest time step; steps the CFL rule would "
+       "make shorter are counted and reported.", "time_step.dt_min", lo=0.0, hi=1.0,
+       lo_open=True),
+    _P("time_step.dt_max", "float", None, "s", "Largest time step. auto: 5 ms * r / 0.025 m.",
+       "time_step.dt_max", lo=0.0, hi=1.0, lo_open=True, optional=True),
+    _P("time_step.dt_initial", "float", None, "s", "First time step. auto: the CFL value of the "
+       "initial velocities.", "time_step.dt_initial", lo=0.0, hi=1.0, lo_open=True,
+       optional=True),
+    # -- [solver] -------------------------------------------------------------------------------
+    _P("solver.pair_cache_mb", "float", 64.0, "MiB", "Memory the pressure solves (DFSPH's, IPSPH's "
+       "divergence solve) may use to keep each fluid pair's kernel gradient instead of evaluating "
+       "it in every iteration: 24 bytes per neighbour-list slot, about 1.5 KB per particle. Over it "
+       "(about 40k fluid particles), or at 0, they evaluate the kernel again: the same results up "
+       "to the order of floating-point additions.",
+       "solver.pair_cache_mb", lo=0.0, hi=1e6),
+    # -- [solver.divergence] ---------------------------------------------------------------------
+    _P("solver.divergence.enabled", "bool", True, "", "Run the divergence solve (DFSPH's, and "
+       "IPSPH's Algorithm 1; false turns both off, for experiments).", "solver.divergence.enabled"),
+    _P("solver.divergence.error_pct", "float", 0.1, "%", "Divergence solve (DFSPH and IPSPH): "
+       "stop when mean Drho/Dt <= this * rho0 / dt.", "solver.divergence.error_pct",
+       lo=0.0, hi=100.0, lo_open=True),
+    _P("solver.divergence.min_iterations", "int", 1, "", "Divergence solve: minimum iterations.",
+       "solver.divergence.min_iterations", lo=0, hi=100_000),
+    _P("solver.divergence.max_iterations", "int", 100, "", "Divergence solve: maximum iterations.",
+       "solver.divergence.max_iterations", lo=1, hi=100_000),
+    # -- [solver.dfsph] -------------------------------------------------------------------------
+    _P("solver.dfsph.density_error_pct", "float", 0.01, "%", "DFSPH density solve: stop when "
+       "the mean density error is below this.", "solver.dfsph.density_error_pct", lo=0.0, hi=100.0,
+       lo_open=True),
+    _P("solver.dfsph.density_min_iterations", "int", 2, "", "DFSPH density solve: minimum "
+       "iterations.", "solver.dfsph.density_min_iterations", lo=0, hi=100_000),
+    _P("solver.dfsph.density_max_iterations", "int", 100, "", "DFSPH density solve: maximum "
+       "iterations.", "solver.dfsph.density_max_iterations", lo=1, hi=100_000),
+    # -- [solver.pf] ----------------------------------------------------------------------------
+    _P("solver.pf.stiffness", "float", 50_000.0, "", "Projective Fluids constraint stiffness "
+       "k_s (PF and IPSPH).", "solver.pf.stiffness", lo=0.0, hi=1e12, lo_open=True),
+    _P("solver.pf.passes", "int", 3, "", "Local/global passes per step of plain PF "
+       "(SPlisHSPlasH runs 3).", "solver.pf.passes", lo=1, hi=10_000),
+    # -- [solver.ipsph] -------------------------------------------------------------------------
+    _P("solver.ipsph.density_error_pct", "float", 0.05, "%", "IPSPH average-density loop: stop "
+       "when mean max(rho/rho0 - 1, 0) is below this.", "solver.ipsph.density_error_pct",
+       lo=0.0, hi=100.0, lo_open=True),
+    _P("solver.ipsph.min_passes", "int", 2, "", "IPSPH: minimum PF passes per step.",
+       "solver.ipsph.min_passes", lo=1, hi=100_000),
+    _P("solver.ipsph.max_passes", "int", 100, "", "IPSPH: maximum PF passes per step.",
+       "solver.ipsph.max_passes", lo=1, hi=100_000),
+    _P("solver.ipsph.warm_start", "float", 0.8, "", "IPSPH: fraction of the last step's PF "
+       "multipliers to start from (0 = off).", "solver.ipsph.warm_start", lo=0.0, hi=1.0),
+    # -- [output] -------------------------------------------------------------------------------
+    _P("output.folder", "path", Path("out"), "", "Output folder; a relative path resolves "
+       "against the current working directory when the run starts.", "output.folder"),
+    _P("output.fps", "float", 25.0, "1/s", "Frames written per simulated second.",
+       "output.fps", lo=0.0, hi=1e4, lo_open=True),
+    _P("output.every_step", "bool", False, "", "Write a frame after every time step instead "
+       "of at fps.", "output.every_step"),
+    _P("output.fields", "fields", ("velocity", "density", "pressure", "mass", "id"), "",
+       "Per-particle arrays written to each frame (positions always are).", "output.fields",
+       choices=OUTPUT_FIELDS),
+    _P("output.checkpoint_interval", "float", None, "s", "Simulated seconds between "
+       "checkpoints. auto: no checkpoints.", "output.checkpoint_interval", lo=0.0, hi=1e6,
+       lo_open=True, optional=True),
+    # -- [render] -------------------------------------------------------------------------------
+    _P("render.enabled", "bool", True, "", "Render a PNG of every frame during the run (`--no-render` turns it off; "
+       "`ipsph render OUT --video` makes a video afterwards).",
+       "render.enabled"),
+    _P("render.width", "int", 1280, "px", "Image width.", "render.width", lo=16, hi=16384),
+    _P("render.height", "int", 720, "px", "Image height.", "render.height", lo=16, hi=16384),
+    _P("render.view", "choice", "front", "", "Named view, used when camera_position is auto.",
+       "render.view", choices=tuple(RENDER_VIEWS)),
+    _P("render.camera_position", "vec3", None, "m", "Camera position. auto: from view.",
+       "render.camera_position", optional=True),
+    _P("render.focal_point", "vec3", None, "m", "Point the camera looks at. auto: the scene "
+       "centre.", "render.focal_point", optional=True),
+    _P("render.view_up", "vec3", None, "", "Camera up direction. auto: +y.", "render.view_up",
+       optional=True),
+    _P("render.speed_range", "range2", None, "m/s", "Colour-map range of the speed. auto: "
+       "from the run.", "render.speed_range", lo=0.0, optional=True),
+    # -- [[fluid]] ------------------------------------------------------------------------------
+    _P("fluid.name", "str", None, "", "Name of the body. Default: fluid<i> (i counts from 0).",
+       "name"),
+    _P("fluid.box.min", "vec3", None, "m", "Box fluid: minimum corner. Lattice as "
+       "SPlisHSPlasH's FluidBlocks: round(extent / 2r) - 1 particles per axis, the first at "
+       "min + 2r.", "box_min", required=True),
+    _P("fluid.box.max", "vec3", None, "m", "Box fluid: maximum corner.", "box_max",
+       required=True),
+    _P("fluid.mesh", "path", None, "", "Mesh fluid: closed surface mesh file, relative to the "
+       "scene file. Give box or mesh, not both.", "mesh"),
+    *_transform("fluid"),
+    _P("fluid.velocity", "vec3", _Z3, "m/s", "Initial velocity of every particle of the body.",
+       "velocity", lo=-1e3, hi=1e3),
+    _P("fluid.allow_open_mesh", "bool", False, "", "Mesh only: sample a mesh that is not "
+       "watertight (at your own risk) instead of refusing it.", "allow_open_mesh"),
+    # -- [[boundary]] ---------------------------------------------------------------------------
+    _P("boundary.name", "str", None, "", "Name of the wall. Default: boundary<i>.", "name"),
+    _P("boundary.role", "choice", "container", "", "container: the fluid lives inside the "
+       "closed surface; obstacle: the fluid flows around it.", "role",
+       choices=BOUNDARY_ROLES),
+    _P("boundary.box.min", "vec3", None, "m", "Box wall: minimum corner.", "box_min",
+       required=True),
+    _P("boundary.box.max", "vec3", None, "m", "Box wall: maximum corner.", "box_max",
+       required=True),
+    _P("boundary.mesh", "path", None, "", "Mesh wall: closed surface mesh file, relative to "
+       "the scene file. Give box or mesh, not both.", "mesh"),
+    *_transform("boundary"),
+)
+
+PARAM_BY_PATH: dict[str, Param] = {p.path: p for p in PARAMS}
+_ENTITIES = ("fluid", "boundary")
+_ENTITY_TABLE = {"fluid": "[[fluid]]", "boundary": "[[boundary]]"}
+
+SECTION_DOCS = {
+    "": "Top-level keys (outside any table).",
+    "simulation": "The physics: method, resolution, material, duration.",
+    "time_step": "Adaptive time step (CFL). method.md section 1.",
+    "solver": "Shared by the pressure solvers.",
+    "solver.divergence": "The divergence solve of DFSPH and of IPSPH (method.md sections 2, 4).",
+    "solver.dfsph": "DFSPH's density solve (method.md section 2).",
+    "solver.pf": "Projective Fluids (method.md section 3); the stiffness also applies to IPSPH.",
+    "solver.ipsph": "IPSPH's average-density loop around the PF passes (method.md section 4).",
+    "output": "What is written, where and how often.",
+    "render": "Offscreen renders of the written frames.",
+    "fluid": "One [[fluid]] table per fluid body: `box = {min = [..], max = [..]}` or "
+             "`mesh = \"file.obj\"`. `fluid[0]` in messages is the first [[fluid]] table.",
+    "boundary": "One [[boundary]] table per static wall (Akinci boundary particles on its "
+                "surface): a box or a closed mesh, as a container or an obstacle.",
+}
+
+# keys that moved: old path -> new path (a scene that uses the old one gets a one-line error)
+RENAMED = {
+    "solver.dfsph.divergence_error_pct": "solver.divergence.error_pct",
+    "solver.dfsph.divergence_min_iterations": "solver.divergence.min_iterations",
+    "solver.dfsph.divergence_max_iterations": "solver.divergence.max_iterations",
+    "solver.dfsph.divergence_solve": "solver.divergence.enabled",
+}
+
+
+def default(path: str) -> Any:
+    """The declared default of a parameter (the model's dataclasses take theirs from here)."""
+    return PARAM_BY_PATH[path].default

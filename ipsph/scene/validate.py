@@ -1,0 +1,368 @@
+"""Reading and validating a scene dict (the TOML layout) into `ipsph.model.Scene`.
+
+Rules (house-style 6 and 7): unknown keys are refused with a "did you mean"; a renamed key names
+its new path; a wrong type or an out-of-range value is refused naming the full key path
+(`fluid[1].velocity`) and the allowed range; nothing is clamped; every error is one line
+(`ConfigError`, exit code 2).
+"""
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import math
+import re
+import tomllib
+import typing
+from pathlib import Path
+from typing import Any, Iterable
+
+from ..errors import ConfigError
+from ..model import (BoundarySpec, FluidSpec, Method, OutputConfig, RenderConfig, Role, Scene,
+                     SolverConfig, TimeStepConfig, Transform)
+from ..params import AUTO, PARAM_BY_PATH, PARAMS, RENAMED, Param, default
+from .text import _allowed, _fmt, _fmt_vec, _show, _tname
+
+ENTITIES = ("fluid", "boundary")
+ENTITY_TABLE = {"fluid": "[[fluid]]", "boundary": "[[boundary]]"}
+_Z3 = (0.0, 0.0, 0.0)
+
+
+def _tree(params: Iterable[Param]) -> dict:
+    root: dict = {}
+    for p in params:
+        node = root
+        parts = p.path.split(".")
+        for part in parts[:-1]:
+            node = node.setdefault(part, {})
+        node[parts[-1]] = p
+    return root
+
+
+_ROOT = _tree(p for p in PARAMS if p.path.split(".", 1)[0] not in ENTITIES)
+_ENTITY_TREES = {e: _tree(p for p in PARAMS if p.path.startswith(e + "."))[e] for e in ENTITIES}
+_TOP_KEYS = sorted(set(_ROOT) | set(ENTITIES))
+
+
+def renamed_error(path: str, where: str) -> None:
+    """ConfigError naming the new key when `path` (dotted, or `fluid[0].x`) is a renamed one."""
+    plain = re.sub(r"\[\d+\]|\.\d+(?=\.)", "", path)
+    if plain in RENAMED:
+        raise ConfigError(f"{where}: {path} was renamed to {RENAMED[plain]}: write it as "
+                          f"{RENAMED[plain]}")
+
+
+def set_path(d: dict, path: str, value: Any) -> None:
+    parts = path.split(".")
+    for part in parts[:-1]:
+        d = d.setdefault(part, {})
+    d[parts[-1]] = value
+
+
+def _construct(cls, values: dict):
+    """cls(**values), building nested dataclass fields (solver.divergence, ...) from sub-dicts."""
+    hints = typing.get_type_hints(cls)
+    return cls(**{k: _construct(hints[k], v) if dataclasses.is_dataclass(hints[k]) and isinstance(v, dict)
+                  else v for k, v in values.items()})
+
+
+def lattice_counts(box_min, box_max, particle_radius: float) -> tuple[int, int, int]:
+    """Particles per axis of a box fluid, SPlisHSPlasH's FluidBlocks rule (denseMode 0):
+    n = round(extent / 2r) - 1 with C's round (halves away from zero, not Python's banker's
+    rounding); the first particle sits at min + 2r."""
+    d = 2.0 * particle_radius
+    return tuple(int(math.floor((hi - lo) / d + 0.5)) - 1 for lo, hi in zip(box_min, box_max))
+
+
+def _read_toml(path: Path, where: str) -> dict:
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"{where}: cannot read scene file (resolved: {path}): "
+                          f"{' '.join(str(exc).split())}") from exc
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        msg = " ".join(str(exc).split())
+        m = re.search(r"\(at line (\d+), column (\d+)\)", msg)
+        if m:
+            msg = msg[:m.start()].strip()
+            if msg == "Invalid value":
+                msg += " (text values need double quotes, e.g. method = \"ipsph\")"
+            raise ConfigError(f"{where}:{m.group(1)}:{m.group(2)}: TOML syntax error: {msg}") \
+                from exc
+        raise ConfigError(f"{where}: TOML syntax error: {msg}") from exc
+
+
+class _Ctx:
+    def __init__(self, where: str):
+        self.where = where
+
+    def fail(self, key: str, msg: str) -> ConfigError:
+        return ConfigError(f"{self.where}: {key}: {msg}")
+
+
+def _build_scene(data: dict, base_dir: Path, name: str | None, source: Path | None,
+                 where: str) -> Scene:
+    ctx = _Ctx(where)
+    if not isinstance(data, dict):
+        raise ConfigError(f"{where}: a scene must be a table of keys, got {_tname(data)}")
+    values: dict[str, Any] = {}
+    for key, value in data.items():
+        if key in ENTITIES:
+            continue
+        if key not in _ROOT:
+            raise _unknown(ctx, key, "", _TOP_KEYS)
+        node = _ROOT[key]
+        if isinstance(node, Param):
+            if key == "name":
+                if not isinstance(value, str) or not value.strip():
+                    raise ctx.fail(key, f"expected a non-empty string, got {_show(value)}")
+                values[key] = value
+            else:
+                values[key] = _convert(ctx, node, value, key)
+        else:
+            _walk(ctx, value, node, key, values)
+
+    kw: dict[str, Any] = {}
+    for ppath, v in values.items():   # nested by where each value lands in the model
+        set_path(kw, PARAM_BY_PATH[ppath].target, v)
+    kw["name"] = name or kw.get("name") or "scene"
+    if source is not None:
+        kw["source"] = Path(source)
+    elif kw.get("source") is not None:
+        kw["source"] = Path(kw["source"])
+    if "method" in kw:
+        kw["method"] = Method(kw["method"])
+    if "folder" in kw.get("output", {}):
+        kw["output"]["folder"] = Path(kw["output"]["folder"]).expanduser()
+    sections = {k: _construct(t, kw.pop(k, {})) for k, t in
+                (("time_step", TimeStepConfig), ("solver", SolverConfig), ("output", OutputConfig),
+                 ("render", RenderConfig))}
+    r = kw.get("particle_radius", default("simulation.particle_radius"))
+    _check_sections(ctx, sections["time_step"], sections["solver"], sections["render"], r)
+
+    fluids_raw = _entity_list(ctx, data, "fluid")
+    if not fluids_raw:
+        raise ConfigError(f"{where}: no [[fluid]] table: a scene needs at least one fluid body "
+                          f"(a box or a mesh)")
+    fluids = tuple(_entity(ctx, "fluid", i, e, base_dir, r) for i, e in enumerate(fluids_raw))
+    boundaries = tuple(_entity(ctx, "boundary", i, e, base_dir, r)
+                       for i, e in enumerate(_entity_list(ctx, data, "boundary")))
+    for kind, items in (("fluid", fluids), ("boundary", boundaries)):
+        seen: dict[str, int] = {}
+        for i, item in enumerate(items):
+            if item.name in seen:
+                raise ctx.fail(f"{kind}[{i}].name", f"{item.name!r} is already the name of "
+                               f"{kind}[{seen[item.name]}]; names must be unique")
+            seen[item.name] = i
+    return Scene(fluids=fluids, boundaries=boundaries, **sections, **kw)
+
+
+def _walk(ctx: _Ctx, data: Any, tree: dict, prefix: str, out: dict) -> None:
+    if not isinstance(data, dict):
+        raise ctx.fail(prefix, f"expected a table ([{prefix}]), got {_show(data)}")
+    for key, value in data.items():
+        shown = f"{prefix}.{key}"
+        if key not in tree:
+            renamed_error(shown, ctx.where)
+            raise _unknown(ctx, key, prefix, sorted(tree))
+        node = tree[key]
+        if isinstance(node, Param):
+            out[node.path] = _convert(ctx, node, value, shown)
+        else:
+            _walk(ctx, value, node, shown, out)
+
+
+def _unknown(ctx: _Ctx, key: str, prefix: str, allowed: list[str]) -> ConfigError:
+    shown = f"{prefix}.{key}" if prefix else key
+    close = difflib.get_close_matches(key, allowed, n=3, cutoff=0.6)
+    if close:
+        hint = "; did you mean " + " or ".join(repr(c) for c in close) + "?"
+    else:
+        # the right key in the wrong table: [simulation] cfl_factor -> time_step.cfl_factor
+        elsewhere = [p.path for p in PARAMS if p.key == key and p.path != "source"]
+        elsewhere = [re.sub(r"^(fluid|boundary)\.", r"\1[i].", e) for e in elsewhere]
+        hint = ("; did you mean " + " or ".join(repr(e) for e in elsewhere) + "?"
+                if elsewhere else "")
+    where_ = f"[{prefix}]" if prefix else "the top level"
+    return ConfigError(f"{ctx.where}: unknown key {shown!r}{hint} (allowed in {where_}: "
+                       f"{', '.join(allowed)})")
+
+
+def _convert(ctx: _Ctx, p: Param, value: Any, shown: str) -> Any:
+    """Check one value against its Param; return it in model form."""
+    if p.optional and (value is None or value == AUTO):
+        return None
+    kind = p.kind
+    if kind == "float":
+        x = _number(ctx, value, shown, p)
+        _check_range(ctx, p, x, shown)
+        return x
+    if kind == "int":
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ctx.fail(shown, f"expected an integer, got {_show(value)}")
+        _check_range(ctx, p, value, shown)
+        return value
+    if kind == "bool":
+        if not isinstance(value, bool):
+            raise ctx.fail(shown, f"expected true or false, got {_show(value)}")
+        return value
+    if kind in ("str", "path"):
+        if not isinstance(value, str) or not value.strip():
+            raise ctx.fail(shown, f"expected a non-empty string, got {_show(value)}")
+        return value
+    if kind == "choice":
+        if not isinstance(value, str) or value not in p.choices:
+            close = difflib.get_close_matches(str(value), p.choices, n=1, cutoff=0.5)
+            hint = f"; did you mean {close[0]!r}?" if close else ""
+            raise ctx.fail(shown, f"{_show(value)} is not one of "
+                           f"{', '.join(p.choices)}{hint}")
+        return value
+    if kind == "vec3":
+        if not isinstance(value, (list, tuple)) or len(value) != 3:
+            raise ctx.fail(shown, f"expected 3 numbers [x, y, z], got {_show(value)}")
+        v = tuple(_number(ctx, c, f"{shown}[{i}]", p) for i, c in enumerate(value))
+        for i, c in enumerate(v):
+            _check_range(ctx, p, c, f"{shown}[{i}]")
+        return v
+    if kind == "range2":
+        if not isinstance(value, (list, tuple)) or len(value) != 2:
+            raise ctx.fail(shown, f"expected 2 numbers [min, max], got {_show(value)}")
+        lo, hi = (_number(ctx, c, f"{shown}[{i}]", p) for i, c in enumerate(value))
+        _check_range(ctx, p, lo, f"{shown}[0]")
+        if not lo < hi:
+            raise ctx.fail(shown, f"min {_fmt(lo)} must be < max {_fmt(hi)}")
+        return (lo, hi)
+    if kind == "fields":
+        if not isinstance(value, (list, tuple)):
+            raise ctx.fail(shown, f"expected a list of field names, got {_show(value)}")
+        for i, f in enumerate(value):
+            if not isinstance(f, str) or f not in p.choices:
+                raise ctx.fail(f"{shown}[{i}]", f"{_show(f)} is not one of "
+                               f"{', '.join(p.choices)}")
+        dup = sorted({f for f in value if list(value).count(f) > 1})
+        if dup:
+            raise ctx.fail(shown, f"listed more than once: {', '.join(dup)}")
+        return tuple(value)
+    raise AssertionError(f"unknown parameter kind {kind!r}")  # programming error, not input
+
+
+def _number(ctx: _Ctx, value: Any, shown: str, p: Param) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ctx.fail(shown, f"expected a number, got {_show(value)}")
+    x = float(value)
+    if not math.isfinite(x):
+        raise ctx.fail(shown, f"expected a finite number, got {_show(value)}")
+    return x
+
+
+def _check_range(ctx: _Ctx, p: Param, x: float, shown: str) -> None:
+    bad = ((p.lo is not None and (x < p.lo or (p.lo_open and x == p.lo)))
+           or (p.hi is not None and (x > p.hi or (p.hi_open and x == p.hi))))
+    if bad:
+        unit = f" {p.unit}" if p.unit else ""
+        raise ctx.fail(shown, f"{_fmt(x)}{unit} is out of range: allowed {_allowed(p)}")
+
+
+def _check_sections(ctx: _Ctx, ts: TimeStepConfig, sv: SolverConfig, rd: RenderConfig,
+                    r: float) -> None:
+    dt_max = ts.resolved_dt_max(r)
+    if ts.dt_min > dt_max:
+        src = "time_step.dt_max" if ts.dt_max is not None else \
+            f"time_step.dt_max (auto: 5 ms * r / 0.025 m = {_fmt(dt_max)} s)"
+        raise ctx.fail("time_step.dt_min", f"{_fmt(ts.dt_min)} s is larger than {src}; "
+                       f"lower dt_min or raise dt_max")
+    if ts.dt_initial is not None and not ts.dt_min <= ts.dt_initial <= dt_max:
+        raise ctx.fail("time_step.dt_initial", f"{_fmt(ts.dt_initial)} s is outside "
+                       f"[dt_min, dt_max] = [{_fmt(ts.dt_min)}, {_fmt(dt_max)}] s")
+    for lo_key, hi_key, lo, hi in (
+            ("solver.dfsph.density_min_iterations", "density_max_iterations",
+             sv.dfsph.density_min_iterations, sv.dfsph.density_max_iterations),
+            ("solver.divergence.min_iterations", "max_iterations",
+             sv.divergence.min_iterations, sv.divergence.max_iterations),
+            ("solver.ipsph.min_passes", "max_passes", sv.ipsph.min_passes,
+             sv.ipsph.max_passes)):
+        if lo > hi:
+            raise ctx.fail(lo_key, f"{lo} is larger than {hi_key} = {hi}")
+    if rd.view_up is not None and not any(rd.view_up):
+        raise ctx.fail("render.view_up", "must not be the zero vector")
+    if (rd.camera_position is not None and rd.focal_point is not None
+            and rd.camera_position == rd.focal_point):
+        raise ctx.fail("render.camera_position", "equals render.focal_point; the camera needs "
+                       "a direction to look in")
+
+
+def _entity_list(ctx: _Ctx, data: dict, kind: str) -> list:
+    raw = data.get(kind, [])
+    if isinstance(raw, dict):
+        raise ctx.fail(kind, f"expected an array of tables: write [[{kind}]] (double "
+                       f"brackets), not [{kind}]")
+    if not isinstance(raw, list) or not all(isinstance(e, dict) for e in raw):
+        raise ctx.fail(kind, f"expected an array of tables ([[{kind}]]), got {_show(raw)}")
+    return raw
+
+
+def _entity(ctx: _Ctx, kind: str, i: int, entry: dict, base_dir: Path, r: float):
+    prefix = f"{kind}[{i}]"
+    vals: dict[str, Any] = {}
+    _walk(ctx, entry, _ENTITY_TREES[kind], prefix, vals)
+    g = lambda key: vals.get(f"{kind}.{key}", PARAM_BY_PATH[f"{kind}.{key}"].default)  # noqa
+    name = vals.get(f"{kind}.name") or f"{kind}{i}"
+    has_box, has_mesh = "box" in entry, "mesh" in entry
+    if has_box == has_mesh:
+        raise ctx.fail(prefix, "give exactly one shape: box = {min = [x, y, z], max = "
+                       "[x, y, z]} or mesh = \"file.obj\"" + (", not both" if has_box else ""))
+    t, s = g("translate"), g("scale")
+    axis, deg = g("rotate_axis"), g("rotate_deg")
+    if not any(axis):
+        raise ctx.fail(f"{prefix}.rotate_axis", "must not be the zero vector")
+    extra: dict[str, Any] = {}
+    if kind == "fluid":
+        extra["velocity"] = g("velocity")
+    else:
+        extra["role"] = Role(g("role"))
+    if has_box:
+        for end in ("min", "max"):
+            if f"{kind}.box.{end}" not in vals:
+                raise ctx.fail(f"{prefix}.box", f"missing {end} = [x, y, z]")
+        if deg != 0.0:
+            raise ctx.fail(f"{prefix}.rotate_deg", f"{_fmt(deg)}: boxes are axis-aligned and "
+                           f"cannot be rotated; use a mesh (e.g. a box .obj) to rotate")
+        if kind == "fluid" and f"{kind}.allow_open_mesh" in vals:
+            raise ctx.fail(f"{prefix}.allow_open_mesh", "applies to mesh fluids only")
+        lo_given, hi_given = vals[f"{kind}.box.min"], vals[f"{kind}.box.max"]
+        lo = tuple(si * c + ti for si, c, ti in zip(s, lo_given, t))
+        hi = tuple(si * c + ti for si, c, ti in zip(s, hi_given, t))
+        note = "" if (t, s) == (_Z3, (1.0, 1.0, 1.0)) else \
+            f" (after scale and translate: min {_fmt_vec(lo)}, max {_fmt_vec(hi)})"
+        for a in range(3):
+            if not lo[a] < hi[a]:
+                raise ctx.fail(f"{prefix}.box", f"min {_fmt_vec(lo_given)} must be < max "
+                               f"{_fmt_vec(hi_given)} on every axis{note}")
+        if kind == "fluid":
+            n = lattice_counts(lo, hi, r)
+            if min(n) < 1:
+                a = n.index(min(n))
+                raise ctx.fail(f"{prefix}.box", f"extent {_fmt(hi[a] - lo[a])} m along "
+                               f"{'xyz'[a]} holds no particle at particle_radius {_fmt(r)} m "
+                               f"(round(extent / 2r) - 1 = {n[a]}); need an extent of at "
+                               f"least 3r = {_fmt(3 * r)} m")
+        cls = FluidSpec if kind == "fluid" else BoundarySpec
+        return cls(name=name, shape="box", box_min=lo, box_max=hi, **extra)
+    given = vals[f"{kind}.mesh"]
+    mesh = _resolve_mesh(ctx, f"{prefix}.mesh", given, base_dir)
+    tf = Transform(translate=t, scale=s, rotate_axis=axis, rotate_deg=deg)
+    if kind == "fluid":
+        extra["allow_open_mesh"] = g("allow_open_mesh")
+        return FluidSpec(name=name, shape="mesh", mesh=mesh, transform=tf, **extra)
+    return BoundarySpec(name=name, shape="mesh", mesh=mesh, transform=tf, **extra)
+
+
+def _resolve_mesh(ctx: _Ctx, key: str, given: str, base_dir: Path) -> Path:
+    p = Path(given).expanduser()
+    resolved = (p if p.is_absolute() else base_dir / p).resolve()
+    if not resolved.is_file():
+        what = "is a folder, not a mesh file" if resolved.is_dir() else "mesh file not found"
+        raise ctx.fail(key, f"{what}: {given!r} (resolved: {resolved}; relative paths are "
+                       f"relative to the scene file's folder {base_dir})")
+    return resolved
