@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from ipsph.boundary import Boundary
-from ipsph.neighbours import NeighbourSearch, brute_force_neighbours
+from ipsph.neighbours import NeighbourSearch, brute_force_neighbours, cell_ids
 
 
 def _lists(idx, cnt):
@@ -27,8 +27,13 @@ def test_matches_brute_force_after_sorting(seed, n, nb):
     want_b = brute_force_neighbours(xs, boundary.x, h, False)
     got_b = _lists(nl.boundary, nl.boundary_count)
     assert all(np.array_equal(a, b) for a, b in zip(got_b, want_b))
-    # the permutation is a permutation, and sorted particles are grouped by cell
+    # the permutation is a permutation, and sorted particles are grouped by cell (x fastest)
     assert np.array_equal(np.sort(perm), np.arange(n))
+    g = search.grid
+    cells = np.empty(n, dtype=np.int64)
+    cell_ids(xs, g.origin, g.inv_cell, g.dims, cells)
+    assert np.all(np.diff(cells) >= 0)
+    assert len(np.unique(cells)) > 1  # several cells, so the order is a real constraint
 
 
 def test_fluid_far_from_walls_skips_the_wall_search_and_misses_nothing():
@@ -45,7 +50,6 @@ def test_fluid_far_from_walls_skips_the_wall_search_and_misses_nothing():
     want = brute_force_neighbours(xs, search.boundary.x, h, False)
     assert all(np.array_equal(a, b) for a, b in zip(_lists(nl.boundary, nl.boundary_count), want))
     cells = np.empty(len(xs), dtype=np.int64)
-    from ipsph.neighbours import cell_ids
     cell_ids(xs, g.origin, g.inv_cell, g.dims, cells)
     skipped = np.diff(search.wall_start)[cells] == 0  # cells without wall candidates
     assert skipped.mean() > 0.5                      # the mask does skip most of the column
