@@ -11,8 +11,6 @@ restores the checkpoint, drops frames and stats rows after it, and continues.
 from __future__ import annotations
 
 import math
-import os
-import shutil
 import signal
 import sys
 import time
@@ -23,13 +21,12 @@ import numpy as np
 
 from . import checkpoint as ckpt
 from . import io as out_io
-from .io import provenance, pvd, stats, vtu  # noqa: F401  (submodules used via out_io)
 from .errors import EXIT_INTERRUPTED, EXIT_OK, IpsphError, NumericalFailure, OutputError
+from .io import provenance
+from .io.folder import RunFolder, check_output_folder
 from .model import Scene
-from .simulation import Simulation, StepStats, sample_scene
-
-STATS_COLUMNS = stats.STATS_COLUMNS
-BYTES_PER_PARTICLE = 1024  # the solver's budget per fluid particle (docs/performance.md)
+from .preflight import check_geometry, check_render_size, check_size
+from .simulation import Simulation, sample_scene
 
 
 class Interrupted(Exception):
@@ -47,299 +44,23 @@ class RunOptions:
     progress: bool | None = None   # None: only on a TTY
 
 
-# -- checks before any allocation ------------------------------------------------------------------
-def check_output_folder(out: Path, overwrite: bool, resume: bool) -> None:
-    """Refuse an unwritable folder, or one holding an earlier run (unless overwrite/resume)."""
-    out = out.expanduser()
-    if out.exists() and not out.is_dir():
-        raise OutputError(f"output folder {out} (resolved {out.resolve()}) is a file; choose another -o")
-    if (out / out_io.RUN_JSON).exists() and not (overwrite or resume):
-        raise OutputError(f"output folder {out} holds an earlier run; pass --overwrite to replace it "
-                          f"or --resume to continue it")
-    if resume and not (out / out_io.RUN_JSON).exists():
-        raise OutputError(f"--resume: output folder {out} (resolved {out.resolve()}) holds no earlier run "
-                          f"to continue; run without --resume")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        probe = out / f".ipsph-write-test-{os.getpid()}"
-        probe.write_bytes(b"ok")
-        probe.unlink()
-    except OSError as exc:
-        raise OutputError(f"output folder {out} (resolved {out.resolve()}) is not writable: "
-                          f"{exc.strerror or exc}") from exc
-    if overwrite and not resume:
-        for name in (out_io.FRAMES_DIR, out_io.RENDERS_DIR, out_io.PLOTS_DIR):
-            shutil.rmtree(out / name, ignore_errors=True)
-        for name in (out_io.RUN_PVD, out_io.BOUNDARY_VTU, out_io.BOUNDARY_SURFACE, out_io.STATS_CSV,
-                     out_io.RUN_JSON, "checkpoint.npz"):
-            (out / name).unlink(missing_ok=True)
+class StopOnSignal:
+    """SIGINT / SIGTERM while inside: remember the signal (the run stops after the current step)."""
 
+    def __init__(self):
+        self.signal = None
 
-def available_memory() -> int:
-    """Bytes of memory available to this run now (psutil; 8 GiB if it cannot tell)."""
-    try:
-        import psutil
-        return int(psutil.virtual_memory().available)
-    except Exception:  # pragma: no cover - psutil is a dependency
-        return 8 << 30
+    def __enter__(self):
+        self._old = {s: signal.signal(s, self._note) for s in (signal.SIGINT, signal.SIGTERM)}
+        return self
 
+    def _note(self, signum, _frame):
+        self.signal = signum
 
-def default_max_particles() -> int:
-    """Half the available memory at BYTES_PER_PARTICLE per particle."""
-    return int(available_memory() // 2 // BYTES_PER_PARTICLE)
-
-
-RENDER_BYTES_PER_PIXEL = 112  # render process peak: static layers, depth/owner/shade buffers, frame and
-                              # PNG rows, VTK's and llvmpipe's framebuffers (measured 100 B/px at 3840x2160)
-
-
-def check_render_size(scene: Scene) -> None:
-    """Refuse an image size whose render process would need over half the available memory (exit 2)."""
-    from .errors import ConfigError
-    px = int(scene.render.width) * int(scene.render.height)
-    need = px * RENDER_BYTES_PER_PIXEL
-    avail = available_memory()
-    if need > avail // 2:
-        raise ConfigError(
-            f"render.width x render.height = {scene.render.width} x {scene.render.height} would need about "
-            f"{need / 2**30:.1f} GiB in the render process, over half the available {avail / 2**30:.1f} GiB; "
-            f"use a smaller image, or --no-render and `ipsph render OUT --size W H` on a larger machine")
-
-
-def check_size(scene: Scene, max_particles: int | None) -> int:
-    """Estimate the fluid count before sampling and refuse what would not fit (exit 2)."""
-    from . import sampling
-    from .errors import ConfigError
-    limit = max_particles or default_max_particles()
-    total = 0
-    for spec in scene.fluids:
-        n = sampling.estimate_fluid_count(spec, scene.particle_radius)
-        total += n
-        if total > limit:
-            ext = _extent_hint(spec)
-            raise ConfigError(
-                f"fluid '{spec.name}' would need about {total:,} particles ({total * BYTES_PER_PARTICLE / 2**30:.1f} GiB) "
-                f"at particle_radius {scene.particle_radius} m, over the limit of {limit:,} (--max-particles){ext}")
-    return total
-
-
-def check_geometry(scene: Scene) -> None:
-    """Refuse a particle radius too large for a fluid body: fewer than 2 particles across it (exit 2)."""
-    from .errors import ConfigError
-    d = 2.0 * scene.particle_radius
-    for i, spec in enumerate(scene.fluids):
-        ext = _fluid_extent(spec)
-        if ext is None:
-            continue
-        # box fluids: SPlisHSPlasH's round(extent / d) - 1 per axis; meshes: the lattice across the bounds
-        n = np.floor(ext / d + 0.5) - 1 if spec.shape == "box" else np.floor(ext / d)
-        if n.min() < 2:
-            a = int(np.argmin(n))
-            need = ext[a] / (5.0 if spec.shape == "box" else 4.0)
-            raise ConfigError(
-                f"fluid[{i}] '{spec.name}': simulation.particle_radius {scene.particle_radius} m is too large for "
-                f"its extent of {ext[a]:.4g} m along {'xyz'[a]} ({int(max(n[a], 0))} particle(s) across, at least 2 "
-                f"needed); use particle_radius <= {need:.3g} m (a tenth of that or less for useful results)")
-
-
-def _fluid_extent(spec) -> np.ndarray | None:
-    """Extent (m) of a fluid body after its transform's scale, or None when its mesh cannot be read."""
-    if spec.shape == "box" and spec.box_min is not None:
-        return np.abs(np.subtract(spec.box_max, spec.box_min) * np.asarray(spec.transform.scale))
-    try:
-        from .meshes import load_mesh, transform_mesh
-        b = np.asarray(transform_mesh(load_mesh(spec.mesh), spec.transform).bounds).reshape(3, 2)
-    except Exception:  # the sampler reports unreadable meshes with the full story
-        return None
-    return b[:, 1] - b[:, 0]
-
-
-def _extent_hint(spec) -> str:
-    ext = _fluid_extent(spec)
-    if ext is None:
-        return ""
-    hint = f"; its {'mesh ' if spec.shape != 'box' else ''}extent is {ext[0]:.4g} x {ext[1]:.4g} x {ext[2]:.4g} m"
-    if ext.max() > 100:
-        hint += " (a mesh 1000x too large is probably in millimetres: scale it by 0.001)"
-    return hint
-
-
-# -- the run ---------------------------------------------------------------------------------------
-class OutputFolder:
-    """Writes frames, the PVD, stats rows, checkpoints and run.json for one Simulation.
-
-    With `resume` (a loaded checkpoint) the folder is continued: frames and renders after the
-    checkpoint are deleted and dropped from the PVD, stats rows after its step are cut.
-    """
-
-    def __init__(self, out: Path, sim: Simulation, scene: Scene, info: dict, renderer, progress: bool,
-                 resume: ckpt.Checkpoint | None = None):
-        self.out, self.sim, self.scene, self.info = out, sim, scene, info
-        self.fields = scene.output.fields
-        self.checkpoint_interval = scene.output.checkpoint_interval
-        (out / out_io.FRAMES_DIR).mkdir(parents=True, exist_ok=True)
-        if resume is None:
-            b = sim.boundary
-            boundary_file = None
-            if b.n:
-                out_io.vtu.write_particles(out / out_io.BOUNDARY_VTU, b.x,
-                                           {"volume": b.psi, "id": np.arange(b.n, dtype=np.int64)}, 0.0)
-                boundary_file = out_io.BOUNDARY_VTU
-            self.pvd = out_io.pvd.PvdSeries(out / out_io.RUN_PVD, boundary_file)
-            self.stats = out_io.stats.StatsWriter(out / out_io.STATS_CSV, STATS_COLUMNS)
-            self.frames, self.last_frame_time, self.solver_maxed = 0, None, 0
-            self.last_checkpoint_time = 0.0
-        else:
-            self.pvd = out_io.pvd.PvdSeries.load(out / out_io.RUN_PVD)
-            self.pvd.truncate_after(resume.time)
-            self.frames = int(resume.scalars["frames"])
-            self.last_frame_time = resume.scalars["last_frame_time"]
-            self.solver_maxed = int(resume.scalars["solver_maxed"])
-            self.last_checkpoint_time = resume.time
-            self._delete_frames_from(self.frames)
-            self.stats = out_io.stats.StatsWriter(out / out_io.STATS_CSV, STATS_COLUMNS,
-                                                  truncate_after_step=resume.steps)
-        self.surface = self._write_surface()
-        self.renderer = self._configure_renderer(renderer) if renderer is not None else None
-        self.progress = progress
-        self.t_start = time.perf_counter()
-        self.steps_start = sim.steps
-        self.render_seconds = 0.0
-        self.write_seconds = 0.0
-        self.timings: dict[str, list[float]] = {}
-
-    def _delete_frames_from(self, first: int) -> None:
-        """Remove frame files (and their renders) numbered `first` and later: a resumed run rewrites them.
-        Temporary files a killed run left behind go too (nothing references them)."""
-        for folder, pattern in ((out_io.FRAMES_DIR, "fluid_*.vtu"), (out_io.RENDERS_DIR, "frame_*.png")):
-            for f in (self.out / folder).glob(pattern):
-                index = f.stem.rsplit("_", 1)[-1]
-                if index.isdigit() and int(index) >= first:
-                    f.unlink(missing_ok=True)
-        for folder in (self.out, self.out / out_io.FRAMES_DIR, self.out / out_io.RENDERS_DIR):
-            for f in folder.glob(".*.tmp"):
-                f.unlink(missing_ok=True)
-
-    def checkpoint(self, sim: Simulation) -> None:
-        """Write OUT/checkpoint.npz (atomically) with everything a bit-identical resume needs."""
-        import numba
-        t0 = time.perf_counter()
-        ckpt.save(self.out / ckpt.CHECKPOINT_FILE, sim, frames=self.frames, last_frame_time=self.last_frame_time,
-                  solver_maxed=self.solver_maxed, threads=numba.get_num_threads())
-        self.last_checkpoint_time = sim.time
-        self.info["checkpoint"] = {"file": ckpt.CHECKPOINT_FILE, "time": sim.time, "step": sim.steps}
-        self.write_seconds += time.perf_counter() - t0
-
-    def _write_surface(self):
-        if not self.scene.boundaries:
-            return None
-        import pyvista as pv
-        from .sampling import boundary_surface
-        surf = pv.merge([boundary_surface(spec) for spec in self.scene.boundaries])
-        out_io.vtu.write_surface(self.out / out_io.BOUNDARY_SURFACE, surf)
-        return surf
-
-    def _configure_renderer(self, worker):
-        # No GL probe here: the render worker is itself a child process, so a missing GL stack
-        # crashes it, not the run, and it starts while the solver sets up (a probe costs ~1 s).
-        from . import render
-        sim, scene = self.sim, self.scene
-        speed = max((float(np.linalg.norm(f.velocity)) for f in scene.fluids), default=0.0)
-        bounds = self.info["domain_bounds"]
-        top = float(sim.positions[:, 1].max()) if sim.n_fluid else bounds[3]
-        rng = scene.render.speed_range or self.info.pop("render_speed_range", None) \
-            or render.default_speed_range(speed, scene.gravity, top, bounds[2])
-        self.info["render"] = {**_asdict(scene.render), "enabled": True, "speed_range": list(rng)}
-        surface = self.out / out_io.BOUNDARY_SURFACE if self.surface is not None else None
-        worker.configure(scene.render, bounds, scene.particle_radius, rng, surface,
-                         title=f"{scene.name} - {scene.method.value.upper()} - {sim.n_fluid:,} particles")
-        return worker
-
-    def frame(self, sim: Simulation, k: int) -> None:
-        t0 = time.perf_counter()
-        if self.last_frame_time is not None and sim.time <= self.last_frame_time:
-            return
-        name = out_io.frame_file(self.frames)
-        fields = {}
-        for f in self.fields:
-            fields[f] = {"velocity": lambda: sim.velocities.astype(np.float32),
-                         "density": lambda: sim.densities.astype(np.float32),
-                         "pressure": lambda: sim.pressures.astype(np.float32),
-                         "mass": lambda: sim.masses.astype(np.float32),
-                         "id": lambda: sim.ids}[f]()
-        out_io.vtu.write_particles(self.out / name, sim.positions.astype(np.float32), fields, sim.time)
-        self.pvd.add(sim.time, name)
-        t1 = time.perf_counter()
-        self.write_seconds += t1 - t0
-        if self.renderer is not None:
-            png = self.out / out_io.RENDERS_DIR / f"frame_{self.frames:06d}.png"
-            if not self.renderer.submit(sim.positions, sim.velocities, png, sim.time):
-                self._render_failed()
-            self.render_seconds += time.perf_counter() - t1  # time the solver waited for renders
-        self.frames += 1
-        self.last_frame_time = sim.time
-        interval = self.checkpoint_interval
-        if interval is not None and sim.time - self.last_checkpoint_time >= interval - 1e-9 * max(1.0, interval):
-            self.checkpoint(sim)
-
-    def step(self, s: StepStats) -> None:
-        row = stats.step_row(s, self.sim.n_fluid)
-        for p, v in s.timings.items():
-            self.timings.setdefault(p, []).append(1000 * v)
-        self.solver_maxed += s.solver_maxed
-        self.stats.write(row)
-        if self.progress:
-            end = self.scene.end_time
-            rate = (s.step - self.steps_start) / max(time.perf_counter() - self.t_start, 1e-9)
-            sys.stderr.write(f"\r  t = {s.time:7.3f} / {end:.3f} s  frame {self.frames:4d}  step {s.step:6d}  "
-                             f"density error {100 * s.density_error_mean:.3f} %  {rate:6.1f} steps/s ")
-            sys.stderr.flush()
-        if _STOP["signal"]:
-            raise Interrupted()
-
-    def _render_failed(self) -> None:
-        why = self.renderer.error or "the render process stopped"
-        if self.renderer.ready:
-            print(f"\nipsph: warning: renders stopped ({why}); the simulation carries on", file=sys.stderr)
-        else:
-            print(f"\nipsph: warning: renders skipped: {why}", file=sys.stderr)
-        self.info["render"] = {**self.info.get("render", {}), "enabled": False, "skipped": why}
-        self.renderer.terminate()
-        self.renderer = None
-
-    def close(self) -> None:
-        if self.progress:
-            sys.stderr.write("\n")
-        self.stats.close()
-        if self.renderer is not None:
-            t0 = time.perf_counter()
-            try:
-                self.renderer.close(notice=lambda n: print(
-                    f"ipsph: rendering the last {n} frames (Ctrl-C skips them; `ipsph render {self.out}` "
-                    f"makes them later)", file=sys.stderr))  # the frames still in flight
-            except KeyboardInterrupt:
-                missing = self.renderer.backlog
-                self.renderer.terminate()
-                print(f"ipsph: warning: renders interrupted, {missing} frames not rendered; "
-                      f"`ipsph render {self.out}` makes them", file=sys.stderr)
-                self.info["render"] = {**self.info.get("render", {}), "interrupted": True}
-                self.renderer = None
-                return
-            self.render_seconds += time.perf_counter() - t0
-            if self.renderer.error:
-                self._render_failed()
-
-
-_STOP = {"signal": None}
-
-
-def _on_signal(signum, _frame):
-    _STOP["signal"] = signum
-
-
-def _asdict(obj):
-    from .io.provenance import to_jsonable
-    return to_jsonable(obj)
+    def __exit__(self, *exc):
+        for s, h in self._old.items():
+            signal.signal(s, h)
+        return False
 
 
 def run(scene: Scene, opts: RunOptions) -> int:
@@ -397,29 +118,32 @@ def _run(scene: Scene, opts: RunOptions, resume, renderer) -> int:
             "boundary_particles": sim.n_boundary,
             "domain_bounds": [float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1]), float(lo[2]), float(hi[2])],
             "frames": 0, "steps": 0, "sim_time": 0.0, "wall_seconds": None, "threads": numba.get_num_threads(),
-            "notes": notes, "warnings": list(scene.warnings), "versions": out_io.provenance.versions(),
+            "notes": notes, "warnings": list(scene.warnings), "versions": provenance.versions(),
             "started": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
     if resume is not None:
         now = info["started"]
         info.update(_previous_info(out))
         info["resumed"] = info.get("resumed", []) + [{"time": resume.time, "step": resume.steps, "at": now}]
     progress = sys.stderr.isatty() if opts.progress is None else opts.progress
-    folder = OutputFolder(out, sim, scene, info, renderer, progress, resume)
+    folder = RunFolder(out, sim, scene, info, renderer, progress, resume)
     info["setup_seconds"] = time.perf_counter() - t_setup
     _write_info(out, info, sim, folder)
-    old = {s: signal.signal(s, _on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
-    _STOP["signal"] = None
     code, status = EXIT_OK, "completed"
     t0 = time.perf_counter()
     try:
-        try:
-            sim.run(on_frame=folder.frame, on_step=folder.step)
-        except Interrupted:
-            code, status = EXIT_INTERRUPTED, "interrupted"
-            folder.frame(sim, -1)  # the final frame at the interrupt time
-            folder.checkpoint(sim)
-            print(f"\nipsph: interrupted at t = {sim.time:.4g} s (step {sim.steps}); {folder.frames} frames are "
-                  f"in {out}; continue with the same command and --resume", file=sys.stderr)
+        with StopOnSignal() as stop:  # handlers restored before folder.close(): Ctrl-C there skips renders
+            def on_step(s):
+                folder.step(s)
+                if stop.signal:
+                    raise Interrupted()
+            try:
+                sim.run(on_frame=folder.frame, on_step=on_step)
+            except Interrupted:
+                code, status = EXIT_INTERRUPTED, "interrupted"
+                folder.frame(sim, -1)  # the final frame at the interrupt time
+                folder.checkpoint(sim)
+                print(f"\nipsph: interrupted at t = {sim.time:.4g} s (step {sim.steps}); {folder.frames} frames are "
+                      f"in {out}; continue with the same command and --resume", file=sys.stderr)
     except NumericalFailure as exc:
         code, status = exc.exit_code, "failed"
         info["error"] = str(exc)
@@ -430,8 +154,6 @@ def _run(scene: Scene, opts: RunOptions, resume, renderer) -> int:
         print(f"\nipsph: error: {exc}; the {folder.frames} frames listed in {out / out_io.RUN_PVD} are intact",
               file=sys.stderr)
     finally:
-        for s, h in old.items():
-            signal.signal(s, h)
         folder.close()
         info.update(status=status, completed=status == "completed", exit_code=code,
                     wall_seconds=time.perf_counter() - t0, finished=time.strftime("%Y-%m-%dT%H:%M:%S%z"))
@@ -464,7 +186,7 @@ def _load_resume(out: Path, scene: Scene) -> ckpt.Checkpoint:
 def _previous_info(out: Path) -> dict:
     """What a resumed run keeps from the earlier run.json: when it started, its resumes, its camera and colours."""
     try:
-        old = out_io.provenance.read_run_json(out / out_io.RUN_JSON)
+        old = provenance.read_run_json(out / out_io.RUN_JSON)
     except IpsphError:
         return {}
     keep = {k: old[k] for k in ("started", "resumed", "domain_bounds") if k in old}
@@ -474,15 +196,15 @@ def _previous_info(out: Path) -> dict:
     return keep
 
 
-def _write_info(out: Path, info: dict, sim: Simulation, folder: OutputFolder) -> None:
+def _write_info(out: Path, info: dict, sim: Simulation, folder: RunFolder) -> None:
     info.update(frames=folder.frames, steps=sim.steps, sim_time=sim.time, clamped_steps=sim.clamped_steps,
                 solver_maxed=folder.solver_maxed,
                 timings_ms={p: float(np.median(v)) for p, v in folder.timings.items()},
                 render_seconds=folder.render_seconds, write_seconds=folder.write_seconds)
-    out_io.provenance.write_run_json(out / out_io.RUN_JSON, info)
+    provenance.write_run_json(out / out_io.RUN_JSON, info)
 
 
-def _summary(out: Path, sim: Simulation, folder: OutputFolder, info: dict) -> None:
+def _summary(out: Path, sim: Simulation, folder: RunFolder, info: dict) -> None:
     wall = info["wall_seconds"]
     per_sim = wall / sim.time if sim.time > 0 else math.nan
     print(f"ipsph: {info['method']} {sim.n_fluid:,} fluid + {sim.n_boundary:,} boundary particles, "

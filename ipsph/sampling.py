@@ -108,15 +108,19 @@ def _prepared(path: Path, transform: model.Transform, *, need_closed: bool, allo
     return _PREPARED[key]
 
 
+def mesh_report(spec) -> "meshes.MeshReport":
+    """The mesh checks' report (bounds, volume, closedness, notes) of a mesh fluid or wall, from the
+    in-process memo that sampling uses too: the pre-flight checks read no mesh a second time."""
+    if isinstance(spec, model.FluidSpec):
+        return _prepared(_mesh_path(spec), spec.transform, need_closed=True, allow_open=spec.allow_open_mesh)[1]
+    return _prepared(_mesh_path(spec), spec.transform, need_closed=False, allow_open=True)[1]
+
+
 def mesh_notes(spec) -> list[str]:
     """What the mesh checks did to a mesh fluid or wall (e.g. inverted normals flipped), one line each."""
     if _shape(spec) != "mesh":
         return []
-    if isinstance(spec, model.FluidSpec):
-        _, report = _prepared(_mesh_path(spec), spec.transform, need_closed=True, allow_open=spec.allow_open_mesh)
-    else:
-        _, report = _prepared(_mesh_path(spec), spec.transform, need_closed=False, allow_open=True)
-    return [f"{spec.name}: {note}" for note in report.notes]
+    return [f"{spec.name}: {note}" for note in mesh_report(spec).notes]
 
 
 # ----------------------------------------------------------------------------- fluid

@@ -13,7 +13,8 @@ from pathlib import Path
 
 import pytest
 
-from ipsph import cli, runner
+from ipsph import cli
+from ipsph.io.stats import STATS_COLUMNS
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 RUNNABLE = re.compile(r"^```python[ \t]*\n(.*?)^```[ \t]*$", re.S | re.M)
@@ -65,11 +66,11 @@ def documented_stats_columns() -> list[str]:
 def test_stats_columns_documented_exactly():
     documented = documented_stats_columns()
     assert len(documented) == len(set(documented)), "a stats.csv column is documented twice"
-    assert set(documented) == set(runner.STATS_COLUMNS), (
-        f"only in the docs: {sorted(set(documented) - set(runner.STATS_COLUMNS))}; "
-        f"only in runner.STATS_COLUMNS: {sorted(set(runner.STATS_COLUMNS) - set(documented))}")
+    assert set(documented) == set(STATS_COLUMNS), (
+        f"only in the docs: {sorted(set(documented) - set(STATS_COLUMNS))}; "
+        f"only in STATS_COLUMNS: {sorted(set(STATS_COLUMNS) - set(documented))}")
 
 
 def test_stats_columns_in_writer_order():
     # the doc table lists the columns in file order, so it doubles as a reading guide
-    assert documented_stats_columns() == list(runner.STATS_COLUMNS)
+    assert documented_stats_columns() == list(STATS_COLUMNS)

@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 import ipsph
-from ipsph import cli, runner
+from ipsph import cli
+from ipsph.io.folder import RunFolder
 from ipsph.io import RUN_JSON, RUN_PVD, STATS_CSV, vtu
 from ipsph.io.pvd import PvdSeries
 from ipsph.io.stats import read_stats
@@ -76,20 +77,20 @@ def test_resume_is_bit_identical(uninterrupted, tmp_path, capsys):
 
 
 def test_resume_after_interrupt_is_bit_identical(uninterrupted, tmp_path, capsys, monkeypatch):
-    step = runner.OutputFolder.step
+    step = RunFolder.step
 
     def interrupt_at_step_9(self, s):  # between frames 1 and 2
         if s.step == 9:
             os.kill(os.getpid(), signal.SIGINT)  # the runner's handler: finish the step, final frame, 130
         step(self, s)
-    monkeypatch.setattr(runner.OutputFolder, "step", interrupt_at_step_9)
+    monkeypatch.setattr(RunFolder, "step", interrupt_at_step_9)
     out = tmp_path / "B"
     code, err = run_cli(capsys, out, "--end-time", str(T))
     assert code == 130, err
     frames = PvdSeries.load(out / RUN_PVD).frames
     stop = json.loads((out / RUN_JSON).read_text())["checkpoint"]["time"]
     assert frames[-1][0] == stop and 0.04 < stop < 0.08, "the final frame is at the interrupt, off the frame grid"
-    monkeypatch.setattr(runner.OutputFolder, "step", step)
+    monkeypatch.setattr(RunFolder, "step", step)
     code, err = run_cli(capsys, out, "--end-time", str(T), "--resume")
     assert code == 0, err
     assert_same_run(uninterrupted, out, extra=(stop,))

@@ -1,0 +1,211 @@
+"""The output folder of one run (layout: `ipsph.io`): frames, the PVD, stats rows, checkpoints,
+run.json. No signal handling and no solver: the runner drives it from the time loop's callbacks.
+"""
+from __future__ import annotations
+
+import os
+import shutil
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .. import checkpoint as ckpt
+from ..errors import OutputError
+from . import (BOUNDARY_SURFACE, BOUNDARY_VTU, FRAMES_DIR, PLOTS_DIR, RENDERS_DIR, RUN_JSON, RUN_PVD, STATS_CSV,
+               frame_file, provenance, pvd, stats, vtu)
+
+
+def check_output_folder(out: Path, overwrite: bool, resume: bool) -> None:
+    """Refuse an unwritable folder, or one holding an earlier run (unless overwrite/resume)."""
+    out = out.expanduser()
+    if out.exists() and not out.is_dir():
+        raise OutputError(f"output folder {out} (resolved {out.resolve()}) is a file; choose another -o")
+    if (out / RUN_JSON).exists() and not (overwrite or resume):
+        raise OutputError(f"output folder {out} holds an earlier run; pass --overwrite to replace it "
+                          f"or --resume to continue it")
+    if resume and not (out / RUN_JSON).exists():
+        raise OutputError(f"--resume: output folder {out} (resolved {out.resolve()}) holds no earlier run "
+                          f"to continue; run without --resume")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        probe = out / f".ipsph-write-test-{os.getpid()}"
+        probe.write_bytes(b"ok")
+        probe.unlink()
+    except OSError as exc:
+        raise OutputError(f"output folder {out} (resolved {out.resolve()}) is not writable: "
+                          f"{exc.strerror or exc}") from exc
+    if overwrite and not resume:
+        for name in (FRAMES_DIR, RENDERS_DIR, PLOTS_DIR):
+            shutil.rmtree(out / name, ignore_errors=True)
+        for name in (RUN_PVD, BOUNDARY_VTU, BOUNDARY_SURFACE, STATS_CSV,
+                     RUN_JSON, "checkpoint.npz"):
+            (out / name).unlink(missing_ok=True)
+
+
+class RunFolder:
+    """Writes frames, the PVD, stats rows, checkpoints and run.json for one Simulation.
+
+    With `resume` (a loaded checkpoint) the folder is continued: frames and renders after the
+    checkpoint are deleted and dropped from the PVD, stats rows after its step are cut.
+    """
+
+    def __init__(self, out: Path, sim, scene, info: dict, renderer, progress: bool,
+                 resume: ckpt.Checkpoint | None = None):
+        self.out, self.sim, self.scene, self.info = out, sim, scene, info
+        self.fields = scene.output.fields
+        self.checkpoint_interval = scene.output.checkpoint_interval
+        (out / FRAMES_DIR).mkdir(parents=True, exist_ok=True)
+        if resume is None:
+            b = sim.boundary
+            boundary_file = None
+            if b.n:
+                vtu.write_particles(out / BOUNDARY_VTU, b.x,
+                                           {"volume": b.psi, "id": np.arange(b.n, dtype=np.int64)}, 0.0)
+                boundary_file = BOUNDARY_VTU
+            self.pvd = pvd.PvdSeries(out / RUN_PVD, boundary_file)
+            self.stats = stats.StatsWriter(out / STATS_CSV, stats.STATS_COLUMNS)
+            self.frames, self.last_frame_time, self.solver_maxed = 0, None, 0
+            self.last_checkpoint_time = 0.0
+        else:
+            self.pvd = pvd.PvdSeries.load(out / RUN_PVD)
+            self.pvd.truncate_after(resume.time)
+            self.frames = int(resume.scalars["frames"])
+            self.last_frame_time = resume.scalars["last_frame_time"]
+            self.solver_maxed = int(resume.scalars["solver_maxed"])
+            self.last_checkpoint_time = resume.time
+            self._delete_frames_from(self.frames)
+            self.stats = stats.StatsWriter(out / STATS_CSV, stats.STATS_COLUMNS,
+                                                  truncate_after_step=resume.steps)
+        self.surface = self._write_surface()
+        self.renderer = self._configure_renderer(renderer) if renderer is not None else None
+        self.progress = progress
+        self.t_start = time.perf_counter()
+        self.steps_start = sim.steps
+        self.render_seconds = 0.0
+        self.write_seconds = 0.0
+        self.timings: dict[str, list[float]] = {}
+
+    def _delete_frames_from(self, first: int) -> None:
+        """Remove frame files (and their renders) numbered `first` and later: a resumed run rewrites them.
+        Temporary files a killed run left behind go too (nothing references them)."""
+        for folder, pattern in ((FRAMES_DIR, "fluid_*.vtu"), (RENDERS_DIR, "frame_*.png")):
+            for f in (self.out / folder).glob(pattern):
+                index = f.stem.rsplit("_", 1)[-1]
+                if index.isdigit() and int(index) >= first:
+                    f.unlink(missing_ok=True)
+        for folder in (self.out, self.out / FRAMES_DIR, self.out / RENDERS_DIR):
+            for f in folder.glob(".*.tmp"):
+                f.unlink(missing_ok=True)
+
+    def checkpoint(self, sim) -> None:
+        """Write OUT/checkpoint.npz (atomically) with everything a bit-identical resume needs."""
+        import numba
+        t0 = time.perf_counter()
+        ckpt.save(self.out / ckpt.CHECKPOINT_FILE, sim, frames=self.frames, last_frame_time=self.last_frame_time,
+                  solver_maxed=self.solver_maxed, threads=numba.get_num_threads())
+        self.last_checkpoint_time = sim.time
+        self.info["checkpoint"] = {"file": ckpt.CHECKPOINT_FILE, "time": sim.time, "step": sim.steps}
+        self.write_seconds += time.perf_counter() - t0
+
+    def _write_surface(self):
+        if not self.scene.boundaries:
+            return None
+        import pyvista as pv
+        from ..sampling import boundary_surface
+        surf = pv.merge([boundary_surface(spec) for spec in self.scene.boundaries])
+        vtu.write_surface(self.out / BOUNDARY_SURFACE, surf)
+        return surf
+
+    def _configure_renderer(self, worker):
+        # No GL probe here: the render worker is itself a child process, so a missing GL stack
+        # crashes it, not the run, and it starts while the solver sets up (a probe costs ~1 s).
+        from .. import render
+        sim, scene = self.sim, self.scene
+        speed = max((float(np.linalg.norm(f.velocity)) for f in scene.fluids), default=0.0)
+        bounds = self.info["domain_bounds"]
+        top = float(sim.positions[:, 1].max()) if sim.n_fluid else bounds[3]
+        rng = scene.render.speed_range or self.info.pop("render_speed_range", None) \
+            or render.default_speed_range(speed, scene.gravity, top, bounds[2])
+        self.info["render"] = {**_asdict(scene.render), "enabled": True, "speed_range": list(rng)}
+        surface = self.out / BOUNDARY_SURFACE if self.surface is not None else None
+        worker.configure(scene.render, bounds, scene.particle_radius, rng, surface,
+                         title=f"{scene.name} - {scene.method.value.upper()} - {sim.n_fluid:,} particles")
+        return worker
+
+    def frame(self, sim, k: int) -> None:
+        t0 = time.perf_counter()
+        if self.last_frame_time is not None and sim.time <= self.last_frame_time:
+            return
+        name = frame_file(self.frames)
+        fields = {}
+        for f in self.fields:
+            fields[f] = {"velocity": lambda: sim.velocities.astype(np.float32),
+                         "density": lambda: sim.densities.astype(np.float32),
+                         "pressure": lambda: sim.pressures.astype(np.float32),
+                         "mass": lambda: sim.masses.astype(np.float32),
+                         "id": lambda: sim.ids}[f]()
+        vtu.write_particles(self.out / name, sim.positions.astype(np.float32), fields, sim.time)
+        self.pvd.add(sim.time, name)
+        t1 = time.perf_counter()
+        self.write_seconds += t1 - t0
+        if self.renderer is not None:
+            png = self.out / RENDERS_DIR / f"frame_{self.frames:06d}.png"
+            if not self.renderer.submit(sim.positions, sim.velocities, png, sim.time):
+                self._render_failed()
+            self.render_seconds += time.perf_counter() - t1  # time the solver waited for renders
+        self.frames += 1
+        self.last_frame_time = sim.time
+        interval = self.checkpoint_interval
+        if interval is not None and sim.time - self.last_checkpoint_time >= interval - 1e-9 * max(1.0, interval):
+            self.checkpoint(sim)
+
+    def step(self, s) -> None:
+        row = stats.step_row(s, self.sim.n_fluid)
+        for p, v in s.timings.items():
+            self.timings.setdefault(p, []).append(1000 * v)
+        self.solver_maxed += s.solver_maxed
+        self.stats.write(row)
+        if self.progress:
+            end = self.scene.end_time
+            rate = (s.step - self.steps_start) / max(time.perf_counter() - self.t_start, 1e-9)
+            sys.stderr.write(f"\r  t = {s.time:7.3f} / {end:.3f} s  frame {self.frames:4d}  step {s.step:6d}  "
+                             f"density error {100 * s.density_error_mean:.3f} %  {rate:6.1f} steps/s ")
+            sys.stderr.flush()
+
+    def _render_failed(self) -> None:
+        why = self.renderer.error or "the render process stopped"
+        if self.renderer.ready:
+            print(f"\nipsph: warning: renders stopped ({why}); the simulation carries on", file=sys.stderr)
+        else:
+            print(f"\nipsph: warning: renders skipped: {why}", file=sys.stderr)
+        self.info["render"] = {**self.info.get("render", {}), "enabled": False, "skipped": why}
+        self.renderer.terminate()
+        self.renderer = None
+
+    def close(self) -> None:
+        if self.progress:
+            sys.stderr.write("\n")
+        self.stats.close()
+        if self.renderer is not None:
+            t0 = time.perf_counter()
+            try:
+                self.renderer.close(notice=lambda n: print(
+                    f"ipsph: rendering the last {n} frames (Ctrl-C skips them; `ipsph render {self.out}` "
+                    f"makes them later)", file=sys.stderr))  # the frames still in flight
+            except KeyboardInterrupt:
+                missing = self.renderer.backlog
+                self.renderer.terminate()
+                print(f"ipsph: warning: renders interrupted, {missing} frames not rendered; "
+                      f"`ipsph render {self.out}` makes them", file=sys.stderr)
+                self.info["render"] = {**self.info.get("render", {}), "interrupted": True}
+                self.renderer = None
+                return
+            self.render_seconds += time.perf_counter() - t0
+            if self.renderer.error:
+                self._render_failed()
+
+
+def _asdict(obj):
+    return provenance.to_jsonable(obj)
