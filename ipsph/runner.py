@@ -74,7 +74,7 @@ def run(scene: Scene, opts: RunOptions) -> int:
     renderer = None
     if opts.render and scene.render.enabled:  # start it now: it imports VTK while we sample
         check_render_size(scene)
-        from .render_worker import BackgroundRenderer
+        from .render.worker import BackgroundRenderer
         renderer = BackgroundRenderer()
     try:
         return _run(scene, opts, resume, renderer)

@@ -126,7 +126,7 @@ def test_png_encoder_round_trips_exactly(shape):
 
     from PIL import Image
 
-    from ipsph.splat import encode_png
+    from ipsph.render.splat import encode_png
 
     h, w = shape
     rng = np.random.default_rng(1)

@@ -40,7 +40,9 @@ def _worker(jobs, results):
     from vtkmodules.vtkCommonCore import vtkLogger, vtkObject
     vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_OFF)
     vtkObject.GlobalWarningDisplayOff()
-    from .render import FrameRenderer, read_surface, save_png
+    from .frame import FrameRenderer
+    from .output import read_surface
+    from .png import save_png
     from .splat import warm_up
     warm_up()  # load the compiled kernels while the solver is still setting up
     try:
@@ -120,7 +122,7 @@ class BackgroundRenderer:
         if self.error is not None or code in (0, None):
             return
         if code < 0:
-            from .render import GL_HINT
+            from .gl import GL_HINT
             try:
                 name = signal.Signals(-code).name
             except ValueError:

@@ -1,0 +1,358 @@
+"""FrameRenderer: one offscreen VTK window reused for a series of frames, two engines
+("splat": static layers once through VTK, particles by ipsph.splat; "vtk": all through VTK, the
+reference the tests hold the splat engine to)."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ConfigError
+from ..model import RenderConfig
+from .camera import camera_for_view
+from .gl import _use_egl
+from .png import save_png
+from .style import (BACKGROUND, ENGINES, SURFACE_COLOUR, SURFACE_OPACITY, TIME_LABEL_POS, VIEW_ANGLE_DEG,
+                    _rgb, _ui_scale, speed_lut_rgb)
+from .text import _draw_text, _scalar_bar, _set_font
+
+
+# Lit sphere impostor for vtkPointGaussianMapper splats: a normal from the splat offset, Lambert
+# shading from a fixed key light (upper left, towards the viewer) plus ambient.
+_SPHERE_SPLAT = """//VTK::Color::Impl
+float dist = dot(offsetVCVSOutput.xy, offsetVCVSOutput.xy);
+if (dist > 1.0) { discard; }
+vec3 n = vec3(offsetVCVSOutput.xy, sqrt(1.0 - dist));
+float shade = 0.42 + 0.58 * max(dot(n, normalize(vec3(-0.35, 0.55, 0.75))), 0.0);
+ambientColor *= shade;
+diffuseColor *= shade;
+"""
+
+
+class FrameRenderer:
+    """One offscreen VTK render window reused for a series of frames (fixed camera and colour range).
+
+    Plain VTK classes rather than a pyvista Plotter: importing pyvista's plotting layer imports
+    matplotlib.pyplot, ~1.2 s of CPU in every render process, a third of what the renders of the
+    default scene cost in all (docs/rendering.md). pyvista still reads and filters the meshes.
+    """
+
+    def __init__(self, config: RenderConfig, bounds, particle_radius: float,
+                 speed_range: tuple[float, float], surface=None, *, title: str | None = None,
+                 engine: str = "splat"):
+        if engine not in ENGINES:
+            raise ConfigError(f"render engine {engine!r} is not one of {', '.join(ENGINES)}")
+        lo, hi = (float(v) for v in speed_range)
+        if not (math.isfinite(lo) and math.isfinite(hi) and hi > lo):
+            raise ConfigError(f"render speed_range = ({lo}, {hi}) m/s must be finite with lo < hi")
+        _use_egl()
+        import vtkmodules.vtkRenderingFreeType  # noqa: F401 - text
+        import vtkmodules.vtkRenderingOpenGL2  # noqa: F401 - the OpenGL (EGL) render window
+        from vtkmodules.vtkCommonCore import vtkLookupTable
+        from vtkmodules.vtkCommonDataModel import vtkPolyData
+        from vtkmodules.vtkRenderingCore import vtkActor, vtkLightKit, vtkRenderer, vtkRenderWindow
+        from vtkmodules.vtkRenderingOpenGL2 import vtkOpenGLPointGaussianMapper
+
+        self.config = config
+        self.engine = engine
+        self.speed_range = (lo, hi)
+        self.particle_radius = float(particle_radius)
+        w, h = int(config.width), int(config.height)
+        ren = vtkRenderer()
+        ren.SetBackground(*_rgb(BACKGROUND[0]))
+        ren.SetBackground2(*_rgb(BACKGROUND[1]))
+        ren.GradientBackgroundOn()
+        ren.SetDitherGradient(False)  # rows of equal pixels: PNG and video compress them fast
+        vtkLightKit().AddLightsToRenderer(ren)
+        ren.LightFollowCameraOn()
+        win = vtkRenderWindow()
+        win.SetOffScreenRendering(True)
+        win.SetMultiSamples(0)  # anti-aliasing off
+        win.SetSize(w, h)
+        win.AddRenderer(ren)
+        self.renderer, self.window = ren, win
+
+        # particles (engine "vtk"): lit sphere impostors of world radius r
+        self._lut_rgb = speed_lut_rgb()
+        lut = vtkLookupTable()
+        lut.SetNumberOfTableValues(256)
+        for i, (r, g, b) in enumerate(self._lut_rgb):
+            lut.SetTableValue(i, r, g, b, 1.0)
+        lut.SetTableRange(lo, hi)
+        self._poly = vtkPolyData()
+        mapper = vtkOpenGLPointGaussianMapper()
+        mapper.SetInputData(self._poly)
+        mapper.SetLookupTable(lut)
+        mapper.SetScalarRange(lo, hi)
+        mapper.SetScalarModeToUsePointData()        # the active point scalars: "speed"
+        mapper.SetColorModeToMapScalars()
+        mapper.ScalarVisibilityOn()
+        mapper.SetEmissive(False)
+        mapper.SetScaleFactor(self.particle_radius)  # splat radius in world units = particle radius
+        mapper.SetSplatShaderCode(_SPHERE_SPLAT)
+        # the impostor is cut at radius 1: a quad just around it, not the 3-sigma gaussian default
+        getattr(mapper, "SetBoundScale", getattr(mapper, "SetTriangleScale", None))(1.0)
+        actor = vtkActor()
+        actor.SetMapper(mapper)
+        prop = actor.GetProperty()
+        prop.SetAmbient(0.0)
+        prop.SetDiffuse(1.0)
+        prop.SetSpecular(0.0)
+        ren.AddActor(actor)
+        self._actor, self._mapper = actor, mapper
+        self._keep: tuple = ()
+        self._set_particles(np.zeros((0, 3)), np.zeros(0))
+
+        k = _ui_scale(h)
+        bar = _scalar_bar(lut, k)
+        ren.AddViewProp(bar)
+        self._overlays = [bar]   # 2D actors drawn over everything
+        self._walls = []         # the boundary surface and its edges
+        if surface is not None and surface.GetNumberOfPoints():
+            from vtkmodules.vtkFiltersCore import vtkFeatureEdges
+
+            self._walls.append(self._add_surface(surface, SURFACE_OPACITY, lighting=True, cull_front=True))
+            fe = vtkFeatureEdges()  # outline and creases sharper than 40 degrees
+            fe.SetInputData(surface)
+            fe.BoundaryEdgesOn()
+            fe.FeatureEdgesOn()
+            fe.ManifoldEdgesOff()
+            fe.NonManifoldEdgesOn()
+            fe.SetFeatureAngle(40.0)
+            fe.ColoringOff()
+            fe.Update()
+            edges = fe.GetOutput()
+            if edges.GetNumberOfPoints():
+                self._walls.append(self._add_surface(edges, 0.45, lighting=False, cull_front=False))
+
+        self._time_text = self._add_text("", TIME_LABEL_POS(h), max(round(28 * k), 6), "#ffffff")
+        if title:
+            self._overlays.append(self._add_text(title, (round(18 * k), round(14 * k)), max(round(20 * k), 6),
+                                                 "#b8c0cc"))
+        self._layers = None      # the static layers of the splat engine, drawn at the first frame
+
+        pos, focal, up = camera_for_view(bounds, config.view, width=w, height=h,
+                                         camera_position=config.camera_position,
+                                         focal_point=config.focal_point, view_up=config.view_up)
+        cam = ren.GetActiveCamera()
+        cam.SetPosition(*pos)
+        cam.SetFocalPoint(*focal)
+        cam.SetViewUp(*up)
+        cam.SetViewAngle(VIEW_ANGLE_DEG)
+        extent = np.ptp(np.asarray(bounds, dtype=float).reshape(3, 2), axis=1).max()
+        dist = float(np.linalg.norm(np.subtract(pos, focal)))
+        self._clipping = (max(dist - 4 * extent, dist * 1e-3), dist + 4 * extent)
+        cam.SetClippingRange(*self._clipping)
+
+    def _add_surface(self, mesh, opacity: float, *, lighting: bool, cull_front: bool):
+        from vtkmodules.vtkRenderingCore import vtkActor, vtkPolyDataMapper
+
+        mapper = vtkPolyDataMapper()
+        mapper.SetInputData(mesh)
+        mapper.ScalarVisibilityOff()
+        actor = vtkActor()
+        actor.SetMapper(mapper)
+        prop = actor.GetProperty()
+        prop.SetColor(*_rgb(SURFACE_COLOUR))
+        prop.SetOpacity(opacity)
+        prop.SetInterpolationToFlat()
+        prop.SetAmbient(0.0)
+        prop.SetDiffuse(1.0)
+        prop.SetSpecular(0.0)
+        prop.SetLineWidth(1.0)
+        prop.SetLighting(lighting)
+        prop.SetFrontfaceCulling(cull_front)  # a cutaway: faces turned towards the camera are left out
+        self.renderer.AddActor(actor)
+        return actor
+
+    def _add_text(self, text: str, position: tuple[int, int], size: int, colour: str):
+        from vtkmodules.vtkRenderingCore import vtkTextActor
+
+        actor = vtkTextActor()
+        actor.SetInput(text)
+        actor.SetPosition(*position)
+        prop = actor.GetTextProperty()
+        prop.SetFontSize(size)
+        prop.SetColor(*_rgb(colour))
+        _set_font(prop)
+        self.renderer.AddViewProp(actor)
+        return actor
+
+    def render(self, points: np.ndarray, velocities: np.ndarray | None, out_png, *,
+               time: float | None = None) -> Path:
+        """Render one frame to `out_png` (parent folders are created); return its path."""
+        return save_png(self.image(points, velocities, time=time), out_png)
+
+    def image(self, points: np.ndarray, velocities: np.ndarray | None, *, time: float | None = None) -> np.ndarray:
+        """One frame as a new (h, w, 3) uint8 array (rows top down), not yet written."""
+        pts = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
+        speed = (np.linalg.norm(velocities, axis=1) if velocities is not None and len(velocities)
+                 else np.zeros(len(pts)))
+        label = "" if time is None else f"t = {time:.3f} s"
+        return self._splat_frame(pts, speed, label) if self.engine == "splat" else self._vtk_frame(pts, speed, label)
+
+    def _vtk_frame(self, pts: np.ndarray, speed: np.ndarray, label: str) -> np.ndarray:
+        """The whole frame through VTK (sprites by vtkPointGaussianMapper): the reference the splat
+        engine is tested against."""
+        self._set_particles(pts, speed)
+        self._time_text.SetInput(label)
+        return self._grab()
+
+    # -- splat engine: static layers drawn once through VTK, particles rasterised by ipsph.splat ----
+
+    def _grab(self) -> np.ndarray:
+        """Render and read the window back: (h, w, 3) uint8, rows top down."""
+        from vtkmodules.util.numpy_support import vtk_to_numpy
+        from vtkmodules.vtkCommonCore import vtkUnsignedCharArray
+
+        w, h = int(self.config.width), int(self.config.height)
+        self.renderer.GetActiveCamera().SetClippingRange(*self._clipping)  # a stable frame-to-frame image
+        self.window.Render()
+        buf = vtkUnsignedCharArray()
+        self.window.GetPixelData(0, 0, w - 1, h - 1, 1, buf, 0)
+        return vtk_to_numpy(buf).reshape(h, w, 3)[::-1].copy()
+
+    def _set_background(self, colour: str | None) -> None:
+        """A plain background colour, or None for the frames' gradient."""
+        ren = self.renderer
+        if colour is None:
+            ren.SetBackground(*_rgb(BACKGROUND[0]))
+            ren.GradientBackgroundOn()
+        else:
+            ren.SetBackground(*_rgb(colour))
+            ren.GradientBackgroundOff()
+
+    def _over_black_and_white(self) -> tuple[np.ndarray, np.ndarray]:
+        """What is visible drawn over black, and its transmittance x 255 (over white minus over
+        black): both exact in 8 bits, since both come from 8-bit images."""
+        self._set_background("#000000")
+        black = self._grab()
+        self._set_background("#ffffff")
+        white = self._grab()
+        return black, np.maximum(white, black) - black
+
+    def _wall_depth(self) -> np.ndarray:
+        """Eye distance of the nearest wall per pixel (walls drawn opaque), inf where none."""
+        from vtkmodules.util.numpy_support import vtk_to_numpy
+        from vtkmodules.vtkCommonCore import vtkFloatArray
+
+        w, h = int(self.config.width), int(self.config.height)
+        saved = [a.GetProperty().GetOpacity() for a in self._walls]
+        for a in self._walls:
+            a.GetProperty().SetOpacity(1.0)
+        self._grab()
+        buf = vtkFloatArray()
+        self.window.GetZbufferData(0, 0, w - 1, h - 1, buf)
+        for a, o in zip(self._walls, saved):
+            a.GetProperty().SetOpacity(o)
+        zb = vtk_to_numpy(buf).reshape(h, w)[::-1]
+        near, far = self._clipping
+        dist = np.empty((h, w), np.float32)
+        for r in range(0, h, 128):  # row blocks: no full-frame float64 temporaries
+            z = zb[r:r + 128].astype(np.float64)
+            d = 2.0 * near * far / ((far + near) - (2.0 * z - 1.0) * (far - near))
+            dist[r:r + 128] = np.where(z >= 1.0, np.inf, d)
+        return dist
+
+    def _bake(self) -> None:
+        """Draw the static layers once (see ipsph.splat): walls, their transmittance and depth,
+        background, overlays, and the composed empty frame."""
+        from . import splat
+
+        show = lambda actors, on: [a.SetVisibility(on) for a in actors]  # noqa: E731
+        self._actor.SetVisibility(False)
+        self._time_text.SetVisibility(False)
+        show(self._overlays, False)
+        wall_rgb, wall_t = self._over_black_and_white()
+        wall_depth = self._wall_depth()
+        show(self._walls, False)
+        self._set_background(None)
+        background = self._grab()
+        show(self._overlays, True)
+        over_rgb, over_t = self._over_black_and_white()
+        show(self._walls, True)
+        self._set_background(None)
+        self._actor.SetVisibility(True)
+        self._time_text.SetVisibility(True)
+        static = np.empty_like(background)
+        k = np.float32(1.0 / 255.0)
+        for r in range(0, static.shape[0], 128):  # row blocks: no full-frame float temporaries
+            rows = slice(r, r + 128)
+            f = wall_rgb[rows] + wall_t[rows] * k * background[rows].astype(np.float32)
+            f = over_rgb[rows] + over_t[rows] * k * f
+            static[rows] = np.clip(f + 0.5, 0, 255).astype(np.uint8)
+
+        cam = self.renderer.GetActiveCamera()
+        view = np.array([[cam.GetViewTransformMatrix().GetElement(i, j) for j in range(4)]
+                         for i in range(4)])
+        h, w = int(self.config.height), int(self.config.width)
+        f_px = 0.5 * h / math.tan(math.radians(cam.GetViewAngle()) / 2.0)
+        self._layers = dict(static=static, wall_rgb=wall_rgb, wall_t=wall_t, wall_depth=wall_depth,
+                            over_rgb=over_rgb, over_t=over_t, view=view, f_px=f_px,
+                            colours=(255.0 * self._lut_rgb).astype(np.float32),
+                            zbuf=np.full((h, w), np.inf, np.float32), owner=np.full((h, w), -1, np.int32),
+                            shade=np.empty((h, w), np.float32), light=splat.LIGHT.copy())
+
+    def prepare(self) -> None:
+        """Open the GL context and draw the static layers now rather than at the first frame."""
+        if self.engine == "splat" and self._layers is None:
+            self._bake()
+        elif self.engine == "vtk":
+            self.window.Render()
+
+    def _splat_frame(self, pts: np.ndarray, speed: np.ndarray, label: str) -> np.ndarray:
+        from . import splat
+
+        if self._layers is None:
+            self._bake()
+        L = self._layers
+        n = len(pts)
+        h, w = L["zbuf"].shape
+        sx, sy, dist, rad = (np.empty(n) for _ in range(4))
+        splat.project(pts, L["view"], L["f_px"], 0.5 * w, 0.5 * h, self.particle_radius, sx, sy, dist, rad)
+        lo, hi = self.speed_range
+        k = np.clip((speed - lo) * (256.0 / (hi - lo)), 0, 255).astype(np.intp)  # as vtkLookupTable
+        # front to back: a pixel already covered by a nearer sphere is skipped before any shading
+        order = np.argsort(dist, kind="stable")
+        sx, sy, dist, rad, colour = sx[order], sy[order], dist[order], rad[order], L["colours"][k[order]]
+        box = splat.splat(sx, sy, dist, rad, self.particle_radius, L["light"], L["zbuf"], L["owner"],
+                          L["shade"])
+        img = L["static"].copy()
+        splat.composite(box, L["owner"], L["shade"], L["zbuf"], colour, L["wall_depth"],
+                        L["wall_rgb"], L["wall_t"], L["over_rgb"], L["over_t"], img)
+        if label:
+            _draw_text(img, label, self._time_text.GetTextProperty(), TIME_LABEL_POS(h))
+        return img
+
+    def _set_particles(self, pts: np.ndarray, speed: np.ndarray) -> None:
+        from vtkmodules.util.numpy_support import numpy_to_vtk, numpy_to_vtkIdTypeArray
+        from vtkmodules.vtkCommonCore import vtkPoints
+        from vtkmodules.vtkCommonDataModel import vtkCellArray
+
+        speed = np.ascontiguousarray(speed, dtype=np.float64)
+        vpts = vtkPoints()
+        vpts.SetData(numpy_to_vtk(pts, deep=False))
+        arr = numpy_to_vtk(speed, deep=False)
+        arr.SetName("speed")
+        pd = self._poly.GetPointData()
+        pd.RemoveArray("speed")
+        pd.SetScalars(arr)
+        ids = np.arange(len(pts) + 1, dtype=np.int64)
+        verts = vtkCellArray()  # one vertex per point: the gaussian mapper draws verts
+        verts.SetData(numpy_to_vtkIdTypeArray(ids, deep=True), numpy_to_vtkIdTypeArray(ids[:-1], deep=True))
+        self._poly.SetPoints(vpts)
+        self._poly.SetVerts(verts)
+        self._poly.Modified()
+        self._keep = (pts, speed)  # the VTK arrays share this memory
+
+    def close(self) -> None:
+        if self.window is not None:
+            self.window.Finalize()
+            self.window = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
