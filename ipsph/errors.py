@@ -41,3 +41,13 @@ EXIT_OK = 0
 EXIT_INPUT = 2
 EXIT_NUMERICAL = 3
 EXIT_INTERRUPTED = 130
+
+
+def read_text(path, where: str, what: str = "scene file") -> str:
+    """A text file's contents, or a one-line ConfigError naming it as given and as resolved."""
+    from pathlib import Path
+    try:
+        return Path(path).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"{where}: cannot read {what} (resolved: {Path(path).resolve()}): "
+                          f"{' '.join(str(exc).split())}") from exc

@@ -319,13 +319,10 @@ def _solid_angle(t, tri_a, tri_b, tri_c, px, py, pz):
 @nb.njit(parallel=True, cache=True)
 def _winding_kernel(points, tri_a, tri_b, tri_c, out):
     """out_i = (1/4π) Σ_t 2 atan2(a·(b×c), |a||b||c| + (a·b)|c| + (b·c)|a| + (c·a)|b|), a,b,c = t − p_i."""
-    n = points.shape[0]
-    m = tri_a.shape[0]
-    for i in nb.prange(n):
-        px, py, pz = points[i, 0], points[i, 1], points[i, 2]
+    for i in nb.prange(points.shape[0]):
         acc = 0.0
-        for t in range(m):
-            acc += _solid_angle(t, tri_a, tri_b, tri_c, px, py, pz)
+        for t in range(tri_a.shape[0]):
+            acc += _solid_angle(t, tri_a, tri_b, tri_c, points[i, 0], points[i, 1], points[i, 2])
         out[i] = acc / (4.0 * math.pi)
 
 

@@ -3,16 +3,17 @@
 `ipsph.scene` turns a TOML file, a dict or a SPlisHSPlasH JSON scene into a `Scene`;
 nothing downstream parses files. Units are SI, y is up. Solver tolerances are in
 percent, as in SPlisHSPlasH (`density_error_pct = 0.05` means 0.05 %). Every default, unit,
-range and description is declared once, in `ipsph.params.PARAMS` (`D(path)` below reads it):
-this module only says where each value lands.
+range and description is declared once, in `ipsph.params.PARAMS`: the config tables below are
+generated from it (`_section`), and the scene's and bodies' own fields read their defaults from
+it (`D(path)`).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, make_dataclass
 from enum import StrEnum
 from pathlib import Path
 
-from .params import BOUNDARY_ROLES, METHOD_NAMES
+from .params import BOUNDARY_ROLES, METHOD_NAMES, PARAMS
 from .params import default as D
 
 Vec3 = tuple[float, float, float]
@@ -31,102 +32,59 @@ class Transform:
 
 
 @dataclass(frozen=True)
-class FluidSpec:
-    """A fluid body: an axis-aligned box (`box_min`, `box_max`) or a closed mesh file."""
+class Body:
+    """What a fluid body and a wall share: a name, and an axis-aligned box or a mesh file, placed."""
     name: str
     shape: str                      # "box" | "mesh"
     box_min: Vec3 | None = None
     box_max: Vec3 | None = None
     mesh: Path | None = None
     transform: Transform = Transform()
+
+
+@dataclass(frozen=True)
+class FluidSpec(Body):
+    """A fluid body ([[fluid]]): the box is filled with a lattice, a closed mesh's inside too."""
     velocity: Vec3 = D("fluid.velocity")
     allow_open_mesh: bool = D("fluid.allow_open_mesh")
 
 
 @dataclass(frozen=True)
-class BoundarySpec:
-    """A static wall: a box or a closed mesh, as a container (fluid inside) or an obstacle."""
-    name: str
-    shape: str                      # "box" | "mesh"
+class BoundarySpec(Body):
+    """A static wall ([[boundary]]): a container (fluid inside) or an obstacle (fluid around)."""
     role: Role = Role(D("boundary.role"))
-    box_min: Vec3 | None = None
-    box_max: Vec3 | None = None
-    mesh: Path | None = None
-    transform: Transform = Transform()
 
 
-@dataclass(frozen=True)
-class TimeStepConfig:
-    cfl_factor: float = D("time_step.cfl_factor")
-    dt_min: float = D("time_step.dt_min")
-    dt_max: float | None = D("time_step.dt_max")          # None: 5 ms * r / 0.025 m
-    dt_initial: float | None = D("time_step.dt_initial")  # None: the CFL value of the initial velocities
-
-    def resolved_dt_max(self, particle_radius: float) -> float:
-        return self.dt_max if self.dt_max is not None else 0.005 * particle_radius / 0.025
+_TYPES = {"float": float, "int": int, "bool": bool, "choice": str, "str": str, "path": Path,
+          "vec3": tuple[float, float, float], "range2": tuple[float, float], "fields": tuple[str, ...]}
 
 
-@dataclass(frozen=True)
-class DivergenceConfig:
-    """[solver.divergence]: DFSPH's divergence solve, also IPSPH's (method.md sections 2, 4)."""
-    enabled: bool = D("solver.divergence.enabled")
-    error_pct: float = D("solver.divergence.error_pct")
-    min_iterations: int = D("solver.divergence.min_iterations")
-    max_iterations: int = D("solver.divergence.max_iterations")
+def _section(name: str, table: str, doc: str, nested: dict | None = None, **methods) -> type:
+    """The frozen dataclass of one scene table: a field per parameter of `table` (its name, type
+    and default as params.PARAMS declares them), then the sub-tables in `nested`."""
+    own = [p for p in PARAMS if p.target.rpartition(".")[0] == table]
+    fields = [(p.target.rpartition(".")[2], _TYPES[p.kind] | None if p.optional else _TYPES[p.kind],
+               field(default=p.default)) for p in own]
+    fields += [(key, cls, field(default=cls())) for key, cls in (nested or {}).items()]
+    return make_dataclass(name, fields, frozen=True, namespace={"__doc__": doc, "__module__": __name__, **methods})
 
 
-@dataclass(frozen=True)
-class DFSPHConfig:
-    """[solver.dfsph]: DFSPH's density solve (method.md section 2)."""
-    density_error_pct: float = D("solver.dfsph.density_error_pct")
-    density_min_iterations: int = D("solver.dfsph.density_min_iterations")
-    density_max_iterations: int = D("solver.dfsph.density_max_iterations")
+def _resolved_dt_max(self, particle_radius: float) -> float:
+    """time_step.dt_max, or its auto value 5 ms * r / 0.025 m."""
+    return self.dt_max if self.dt_max is not None else 0.005 * particle_radius / 0.025
 
 
-@dataclass(frozen=True)
-class PFConfig:
-    """[solver.pf]: Projective Fluids (method.md section 3); the stiffness is IPSPH's too."""
-    stiffness: float = D("solver.pf.stiffness")
-    passes: int = D("solver.pf.passes")
-
-
-@dataclass(frozen=True)
-class IPSPHConfig:
-    """[solver.ipsph]: IPSPH's average-density loop (method.md section 4)."""
-    density_error_pct: float = D("solver.ipsph.density_error_pct")
-    min_passes: int = D("solver.ipsph.min_passes")
-    max_passes: int = D("solver.ipsph.max_passes")
-    warm_start: float = D("solver.ipsph.warm_start")
-
-
-@dataclass(frozen=True)
-class SolverConfig:
-    pair_cache_mb: float = D("solver.pair_cache_mb")
-    divergence: DivergenceConfig = DivergenceConfig()
-    dfsph: DFSPHConfig = DFSPHConfig()
-    pf: PFConfig = PFConfig()
-    ipsph: IPSPHConfig = IPSPHConfig()
-
-
-@dataclass(frozen=True)
-class OutputConfig:
-    folder: Path = D("output.folder")
-    fps: float = D("output.fps")
-    every_step: bool = D("output.every_step")
-    fields: tuple[str, ...] = D("output.fields")
-    checkpoint_interval: float | None = D("output.checkpoint_interval")  # None: no checkpoints
-
-
-@dataclass(frozen=True)
-class RenderConfig:
-    enabled: bool = D("render.enabled")
-    width: int = D("render.width")
-    height: int = D("render.height")
-    view: str = D("render.view")
-    camera_position: Vec3 | None = D("render.camera_position")
-    focal_point: Vec3 | None = D("render.focal_point")
-    view_up: Vec3 | None = D("render.view_up")
-    speed_range: tuple[float, float] | None = D("render.speed_range")  # m/s; None: from the run
+TimeStepConfig = _section("TimeStepConfig", "time_step", "[time_step]: the CFL step (method.md section 1).",
+                          resolved_dt_max=_resolved_dt_max)
+DivergenceConfig = _section("DivergenceConfig", "solver.divergence",
+                            "[solver.divergence]: DFSPH's divergence solve, also IPSPH's (method.md 2, 4).")
+DFSPHConfig = _section("DFSPHConfig", "solver.dfsph", "[solver.dfsph]: DFSPH's density solve (method.md 2).")
+PFConfig = _section("PFConfig", "solver.pf", "[solver.pf]: Projective Fluids (method.md 3); the stiffness is IPSPH's too.")
+IPSPHConfig = _section("IPSPHConfig", "solver.ipsph", "[solver.ipsph]: IPSPH's average-density loop (method.md 4).")
+SolverConfig = _section("SolverConfig", "solver", "[solver] and its per-method sub-tables.",
+                        {"divergence": DivergenceConfig, "dfsph": DFSPHConfig, "pf": PFConfig, "ipsph": IPSPHConfig})
+OutputConfig = _section("OutputConfig", "output", "[output]: what is written, where, how often.")
+RenderConfig = _section("RenderConfig", "render", "[render]: the offscreen renders.")
 
 
 @dataclass(frozen=True)

@@ -55,6 +55,7 @@ class Param:
       BoundarySpec attribute (`transform.translate`). Empty: no direct model field.
     lo/hi (+ lo_open/hi_open): allowed range, per component for vectors.
     optional: the value may be None (key left out, or written "auto").
+    at_most: the path of a key whose value this one must not exceed (min <= max pairs).
     """
     path: str
     kind: str
@@ -69,6 +70,7 @@ class Param:
     choices: tuple[str, ...] | None = None
     optional: bool = False
     required: bool = False
+    at_most: str | None = None   # another key (same table) this value must not exceed
 
     @property
     def key(self) -> str:
@@ -80,6 +82,14 @@ _Z3 = (0.0, 0.0, 0.0)
 
 def _P(path, kind, default, unit, doc, target="", **kw) -> Param:
     return Param(path, kind, default, unit, doc, target, **kw)
+
+
+def _limits(table: str, what: str, lo: int, hi: int, solve: str, *, stem: str = "",
+            least: int = 0) -> tuple[Param, ...]:
+    """A loop's minimum and maximum counts (`<stem>min_<what>` <= `<stem>max_<what>`)."""
+    low, high = f"{table}.{stem}min_{what}", f"{table}.{stem}max_{what}"
+    return (_P(low, "int", lo, "", f"{solve}: minimum {what}.", low, lo=least, hi=100_000, at_most=high),
+            _P(high, "int", hi, "", f"{solve}: maximum {what}.", high, lo=1, hi=100_000))
 
 
 def _transform(kind: str) -> tuple[Param, ...]:
@@ -145,18 +155,12 @@ PARAMS: tuple[Param, ...] = (
     _P("solver.divergence.error_pct", "float", 0.1, "%", "Divergence solve (DFSPH and IPSPH): "
        "stop when mean Drho/Dt <= this * rho0 / dt.", "solver.divergence.error_pct",
        lo=0.0, hi=100.0, lo_open=True),
-    _P("solver.divergence.min_iterations", "int", 1, "", "Divergence solve: minimum iterations.",
-       "solver.divergence.min_iterations", lo=0, hi=100_000),
-    _P("solver.divergence.max_iterations", "int", 100, "", "Divergence solve: maximum iterations.",
-       "solver.divergence.max_iterations", lo=1, hi=100_000),
+    *_limits("solver.divergence", "iterations", 1, 100, "Divergence solve"),
     # -- [solver.dfsph] -------------------------------------------------------------------------
     _P("solver.dfsph.density_error_pct", "float", 0.01, "%", "DFSPH density solve: stop when "
        "the mean density error is below this.", "solver.dfsph.density_error_pct", lo=0.0, hi=100.0,
        lo_open=True),
-    _P("solver.dfsph.density_min_iterations", "int", 2, "", "DFSPH density solve: minimum "
-       "iterations.", "solver.dfsph.density_min_iterations", lo=0, hi=100_000),
-    _P("solver.dfsph.density_max_iterations", "int", 100, "", "DFSPH density solve: maximum "
-       "iterations.", "solver.dfsph.density_max_iterations", lo=1, hi=100_000),
+    *_limits("solver.dfsph", "iterations", 2, 100, "DFSPH density solve", stem="density_"),
     # -- [solver.pf] ----------------------------------------------------------------------------
     _P("solver.pf.stiffness", "float", 50_000.0, "", "Projective Fluids constraint stiffness "
        "k_s (PF and IPSPH).", "solver.pf.stiffness", lo=0.0, hi=1e12, lo_open=True),
@@ -166,10 +170,7 @@ PARAMS: tuple[Param, ...] = (
     _P("solver.ipsph.density_error_pct", "float", 0.05, "%", "IPSPH average-density loop: stop "
        "when mean max(rho/rho0 - 1, 0) is below this.", "solver.ipsph.density_error_pct",
        lo=0.0, hi=100.0, lo_open=True),
-    _P("solver.ipsph.min_passes", "int", 2, "", "IPSPH: minimum PF passes per step.",
-       "solver.ipsph.min_passes", lo=1, hi=100_000),
-    _P("solver.ipsph.max_passes", "int", 100, "", "IPSPH: maximum PF passes per step.",
-       "solver.ipsph.max_passes", lo=1, hi=100_000),
+    *_limits("solver.ipsph", "passes", 2, 100, "IPSPH: PF passes per step", least=1),
     _P("solver.ipsph.warm_start", "float", 0.8, "", "IPSPH: fraction of the last step's PF "
        "multipliers to start from (0 = off).", "solver.ipsph.warm_start", lo=0.0, hi=1.0),
     # -- [output] -------------------------------------------------------------------------------

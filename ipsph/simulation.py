@@ -74,6 +74,11 @@ def sample_scene(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray, list
     return np.ascontiguousarray(fluid_x), np.ascontiguousarray(fluid_v), np.ascontiguousarray(boundary_x), notes
 
 
+def _host(array_of, doc: str) -> property:
+    """A read-only view of one of the backend's arrays, as a numpy array."""
+    return property(lambda sim: sim.be.to_host(array_of(sim)), doc=doc)
+
+
 class Simulation:
     """One fluid simulation: particle state, static walls, a method and the clock."""
 
@@ -253,30 +258,13 @@ class Simulation:
         self.method.load_state_dict(d["method"])
         self.method.prepare()
 
-    # -- particle arrays (current order; `ids` maps them to the initial numbering) -------------
-    @property
-    def positions(self) -> np.ndarray:
-        return self.state.x
-
-    @property
-    def velocities(self) -> np.ndarray:
-        return self.state.v
-
-    @property
-    def densities(self) -> np.ndarray:
-        return self.method.density()
-
-    @property
-    def pressures(self) -> np.ndarray:
-        return self.state.pressure
-
-    @property
-    def masses(self) -> np.ndarray:
-        return self.state.m
-
-    @property
-    def ids(self) -> np.ndarray:
-        return self.state.id
+    # -- particle arrays, on the host (current order; `ids` maps them to the initial numbering) --
+    positions = _host(lambda sim: sim.state.x, "(n, 3) positions [m]")
+    velocities = _host(lambda sim: sim.state.v, "(n, 3) velocities [m/s]")
+    densities = _host(lambda sim: sim.method.density(), "(n,) densities at the current positions [kg/m^3]")
+    pressures = _host(lambda sim: sim.state.pressure, "(n,) pressures [Pa]")
+    masses = _host(lambda sim: sim.state.m, "(n,) masses [kg]")
+    ids = _host(lambda sim: sim.state.id, "(n,) ids: the particles' initial numbering")
 
     @property
     def n_fluid(self) -> int:

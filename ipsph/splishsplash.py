@@ -21,7 +21,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from .errors import ConfigError
+from .errors import ConfigError, read_text
 
 __all__ = ["scene_dict", "IMPORT_NOTES", "DEFAULT_END_TIME"]
 
@@ -108,11 +108,7 @@ def scene_dict(path: Path, where: str | None = None) -> tuple[dict, tuple[str, .
     import warnings (at most one string). Mesh paths stay as written: relative to the file."""
     path = Path(path)
     where = where or str(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"{where}: cannot read scene file (resolved: {path.resolve()}): "
-                          f"{' '.join(str(exc).split())}") from exc
+    text = read_text(path, where)
     try:
         raw = json.loads(text)
     except json.JSONDecodeError as exc:

@@ -32,15 +32,21 @@ DENSITY_ROWS, RATE_ROWS, STIFFNESS_ROWS, VISCOSITY_ROWS, PF_GLOBAL_ROWS = 6, 7, 
 
 # -- gathers -------------------------------------------------------------------------------------
 @njit(inline="always")
+def _gather_diff(i, a, b, nbr, n, buf, row, col):
+    """buf[row..row + 2, col + k] = a_i - b_j over the first n neighbours j = nbr[i, k]."""
+    a0, a1, a2 = a[i, 0], a[i, 1], a[i, 2]
+    for k in range(n):
+        j = nbr[i, k]
+        buf[row, col + k] = a0 - b[j, 0]
+        buf[row + 1, col + k] = a1 - b[j, 1]
+        buf[row + 2, col + k] = a2 - b[j, 2]
+
+
+@njit(inline="always")
 def _gather_xf(i, x, nf, cf, buf):
     """buf[DX..DZ, :n_f] = x_i - x_j over the fluid neighbours; returns n_f."""
     n_f = cf[i]
-    xi0, xi1, xi2 = x[i, 0], x[i, 1], x[i, 2]
-    for k in range(n_f):
-        j = nf[i, k]
-        buf[DX, k] = xi0 - x[j, 0]
-        buf[DY, k] = xi1 - x[j, 1]
-        buf[DZ, k] = xi2 - x[j, 2]
+    _gather_diff(i, x, x, nf, n_f, buf, DX, 0)
     return n_f
 
 
@@ -49,33 +55,21 @@ def _gather_x(i, x, xb, nf, cf, nb, cb, buf):
     """buf[DX..DZ, :n_f + n_b] = x_i - x_j (fluid first, then boundary); returns (n_f, n_b)."""
     n_f = _gather_xf(i, x, nf, cf, buf)
     n_b = cb[i]
-    xi0, xi1, xi2 = x[i, 0], x[i, 1], x[i, 2]
-    for k in range(n_b):
-        b = nb[i, k]
-        buf[DX, n_f + k] = xi0 - xb[b, 0]
-        buf[DY, n_f + k] = xi1 - xb[b, 1]
-        buf[DZ, n_f + k] = xi2 - xb[b, 2]
+    _gather_diff(i, x, xb, nb, n_b, buf, DX, n_f)
     return n_f, n_b
 
 
 @njit(inline="always")
 def _gather_rate_f(i, v, nf, n_f, buf):
     """buf[C1..C3] = v_i - v_j over the fluid neighbours: what D rho_i/Dt needs."""
-    vi0, vi1, vi2 = v[i, 0], v[i, 1], v[i, 2]
-    for k in range(n_f):
-        j = nf[i, k]
-        buf[C1, k] = vi0 - v[j, 0]
-        buf[C2, k] = vi1 - v[j, 1]
-        buf[C3, k] = vi2 - v[j, 2]
+    _gather_diff(i, v, v, nf, n_f, buf, C1, 0)
 
 
 # -- vectorised sums over a gathered neighbourhood -------------------------------------------------
 @njit(inline="always", fastmath=FAST)
 def _weighted_gradient(n, buf, row, h):
     """sum_k buf[row, k] grad W(x_ik) over a gathered neighbourhood (the vectorised loop)."""
-    a0 = 0.0
-    a1 = 0.0
-    a2 = 0.0
+    a0 = a1 = a2 = 0.0
     for k in range(n):
         d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
         f = buf[row, k] * grad_w_factor(np.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
@@ -91,14 +85,9 @@ def _density_sums(n, buf, h, rho_self, keep_f):
     rho starts from rho_self; with `keep_f` (a constant at each call site) f = m_k g(r_ik) is
     also left in buf[C2]."""
     rho_w = rho_self
-    g0 = 0.0
-    g1 = 0.0
-    g2 = 0.0
-    b0 = 0.0
-    b1 = 0.0
-    b2 = 0.0
-    s2 = 0.0
-    nn = 0.0
+    g0 = g1 = g2 = 0.0   # sum_k f_k x_ik
+    b0 = b1 = b2 = 0.0   # its walls' part
+    s2 = nn = 0.0        # sum over fluid of |f_k x_ik|^2; neighbours within H
     for k in range(n):
         d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
         r2 = d0 * d0 + d1 * d1 + d2 * d2
@@ -125,16 +114,10 @@ def _density_sums(n, buf, h, rho_self, keep_f):
 def _viscosity_sums(i, n_f, buf, h, eps, mf, standard, fill, pair_grad):
     """viscosity_at's neighbour loop; with `fill` (a constant at each call site) it also
     stores pair_grad[i, :, k] = mf grad W_ij."""
-    a0 = 0.0
-    a1 = 0.0
-    a2 = 0.0
-    s0 = 0.0
-    s1 = 0.0
-    s2 = 0.0
-    p0 = 0.0
-    p1 = 0.0
-    p2 = 0.0
-    dr = 0.0
+    a0 = a1 = a2 = 0.0   # XSPH: sum_j (1/rho_j) v_ij W_ij
+    s0 = s1 = s2 = 0.0   # Standard viscosity: sum_j (1/rho_j) (v_ij . x_ij) / (r^2 + eps) grad W_ij
+    p0 = p1 = p2 = 0.0   # PF displacement: sum_j (lam_i + lam_j) grad W_ij
+    dr = 0.0             # sum_j v_ij . grad W_ij
     for k in range(n_f):
         d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
         r2 = d0 * d0 + d1 * d1 + d2 * d2
@@ -265,9 +248,7 @@ def stiffness_at(i, x, mf, gb, nf, cf, pair_grad, cached, h, k, dt, buf, v, k_to
         buf[C0, n] = ki + k[nf[i, n]]
     if cached:
         g = pair_grad[i]
-        a0 = 0.0
-        a1 = 0.0
-        a2 = 0.0
+        a0 = a1 = a2 = 0.0
         for n in range(n_f):
             s = buf[C0, n]
             a0 += s * g[0, n]

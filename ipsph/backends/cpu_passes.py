@@ -63,48 +63,43 @@ def density_factor_lambda(x, mf, xb, mb, nf, cf, nb, cb, h, rho0, rho, alpha, la
     w0 = w(0.0, h)
     bufs = _buffers(DENSITY_ROWS, nf, nb)
     for c in prange(bufs.shape[0]):
-        buf = bufs[c]
         lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
         for i in range(lo, hi):
-            density_at(i, x, mf, xb, mb, nf, cf, nb, cb, h, rho0, w0, fill, buf, rho, alpha, lam, err, n_nbrs,
+            density_at(i, x, mf, xb, mb, nf, cf, nb, cb, h, rho0, w0, fill, bufs[c], rho, alpha, lam, err, n_nbrs,
                        gb, pair_grad)
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)
 def divergence_residual(x, v, mf, gb, nf, cf, pair_grad, h, alpha, n_nbrs, dt, drho, k):
     """bodies.divergence_residual_at for every particle."""
-    cached = pair_grad.shape[0] == x.shape[0]
     bufs = _fluid_buffers(RATE_ROWS, nf)
     for c in prange(bufs.shape[0]):
-        buf = bufs[c]
         lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
         for i in range(lo, hi):
-            divergence_residual_at(i, x, v, mf, gb, nf, cf, pair_grad, cached, h, alpha, n_nbrs, dt, buf, drho, k)
+            divergence_residual_at(i, x, v, mf, gb, nf, cf, pair_grad, pair_grad.shape[0] == x.shape[0], h, alpha,
+                                   n_nbrs, dt, bufs[c], drho, k)
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)
 def density_residual(x, v, mf, gb, nf, cf, pair_grad, h, rho, alpha, rho0, dt, rho_err, k):
     """bodies.density_residual_at for every particle."""
-    cached = pair_grad.shape[0] == x.shape[0]
     bufs = _fluid_buffers(RATE_ROWS, nf)
     for c in prange(bufs.shape[0]):
-        buf = bufs[c]
         lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
         for i in range(lo, hi):
-            density_residual_at(i, x, v, mf, gb, nf, cf, pair_grad, cached, h, rho, alpha, rho0, dt, buf,
-                                rho_err, k)
+            density_residual_at(i, x, v, mf, gb, nf, cf, pair_grad, pair_grad.shape[0] == x.shape[0], h, rho, alpha,
+                                rho0, dt, bufs[c], rho_err, k)
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)
 def apply_stiffness(x, mf, gb, nf, cf, pair_grad, h, k, dt, v, k_total):
     """bodies.stiffness_at for every particle (in place on v, k_total)."""
-    cached = pair_grad.shape[0] == x.shape[0]
     bufs = _fluid_buffers(STIFFNESS_ROWS, nf)
     for c in prange(bufs.shape[0]):
-        buf = bufs[c]
         lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
         for i in range(lo, hi):
-            stiffness_at(i, x, mf, gb, nf, cf, pair_grad, cached, h, k, dt, buf, v, k_total)
+            stiffness_at(i, x, mf, gb, nf, cf, pair_grad, pair_grad.shape[0] == x.shape[0], h, k, dt, bufs[c], v,
+                         k_total)
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)
@@ -117,11 +112,10 @@ def xsph(x, v, mf, rho, gb, lam, nf, cf, h, zeta, nu_dt, v_out, drho, disp, pair
     standard = nu_dt > 0.0
     bufs = _fluid_buffers(VISCOSITY_ROWS, nf)
     for c in prange(bufs.shape[0]):
-        buf = bufs[c]
         lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
         for i in range(lo, hi):
-            viscosity_at(i, x, v, mf, rho, gb, lam, nf, cf, h, zeta, nu_dt, eps, standard, with_disp, fill, buf,
-                         v_out, drho, disp, pair_grad)
+            viscosity_at(i, x, v, mf, rho, gb, lam, nf, cf, h, zeta, nu_dt, eps, standard, with_disp, fill,
+                         bufs[c], v_out, drho, disp, pair_grad)
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)
@@ -129,10 +123,9 @@ def pf_global(x, s, mf, gb, nf, cf, h, rho0, lam, a, x_out, lam_sum):
     """bodies.pf_global_at for every particle."""
     bufs = _fluid_buffers(PF_GLOBAL_ROWS, nf)
     for c in prange(bufs.shape[0]):
-        buf = bufs[c]
         lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
         for k in range(lo, hi):
-            pf_global_at(k, x, s, mf, gb, nf, cf, h, rho0, lam, a, buf, x_out, lam_sum)
+            pf_global_at(k, x, s, mf, gb, nf, cf, h, rho0, lam, a, bufs[c], x_out, lam_sum)
 
 
 # -- serial reductions ------------------------------------------------------------------------------

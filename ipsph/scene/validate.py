@@ -16,7 +16,7 @@ import typing
 from pathlib import Path
 from typing import Any, Iterable
 
-from ..errors import ConfigError
+from ..errors import ConfigError, read_text
 from ..model import (BoundarySpec, FluidSpec, Method, OutputConfig, RenderConfig, Role, Scene,
                      SolverConfig, TimeStepConfig, Transform)
 from ..params import AUTO, PARAM_BY_PATH, PARAMS, RENAMED, Param, default
@@ -74,11 +74,7 @@ def lattice_counts(box_min, box_max, particle_radius: float) -> tuple[int, int, 
 
 
 def _read_toml(path: Path, where: str) -> dict:
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"{where}: cannot read scene file (resolved: {path}): "
-                          f"{' '.join(str(exc).split())}") from exc
+    text = read_text(path, where)
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -264,8 +260,15 @@ def _check_range(ctx: _Ctx, p: Param, x: float, shown: str) -> None:
         raise ctx.fail(shown, f"{_fmt(x)}{unit} is out of range: allowed {_allowed(p)}")
 
 
+def _get(obj: Any, target: str) -> Any:
+    for part in target.split("."):
+        obj = getattr(obj, part)
+    return obj
+
+
 def _check_sections(ctx: _Ctx, ts: TimeStepConfig, sv: SolverConfig, rd: RenderConfig,
                     r: float) -> None:
+    sv_root = Scene(name="", solver=sv)  # min <= max pairs, by their model targets
     dt_max = ts.resolved_dt_max(r)
     if ts.dt_min > dt_max:
         src = "time_step.dt_max" if ts.dt_max is not None else \
@@ -275,15 +278,11 @@ def _check_sections(ctx: _Ctx, ts: TimeStepConfig, sv: SolverConfig, rd: RenderC
     if ts.dt_initial is not None and not ts.dt_min <= ts.dt_initial <= dt_max:
         raise ctx.fail("time_step.dt_initial", f"{_fmt(ts.dt_initial)} s is outside "
                        f"[dt_min, dt_max] = [{_fmt(ts.dt_min)}, {_fmt(dt_max)}] s")
-    for lo_key, hi_key, lo, hi in (
-            ("solver.dfsph.density_min_iterations", "density_max_iterations",
-             sv.dfsph.density_min_iterations, sv.dfsph.density_max_iterations),
-            ("solver.divergence.min_iterations", "max_iterations",
-             sv.divergence.min_iterations, sv.divergence.max_iterations),
-            ("solver.ipsph.min_passes", "max_passes", sv.ipsph.min_passes,
-             sv.ipsph.max_passes)):
-        if lo > hi:
-            raise ctx.fail(lo_key, f"{lo} is larger than {hi_key} = {hi}")
+    for p in PARAMS:
+        if p.at_most:
+            lo, hi = _get(sv_root, p.target), _get(sv_root, PARAM_BY_PATH[p.at_most].target)
+            if lo > hi:
+                raise ctx.fail(p.path, f"{lo} is larger than {p.at_most.rsplit('.', 1)[1]} = {hi}")
     if rd.view_up is not None and not any(rd.view_up):
         raise ctx.fail("render.view_up", "must not be the zero vector")
     if (rd.camera_position is not None and rd.focal_point is not None
