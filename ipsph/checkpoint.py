@@ -130,8 +130,6 @@ def check_compatible(ck: Checkpoint, scene: Scene) -> None:
         raise OutputError(f"checkpoint {ck.path} belongs to a different scene (differs in {shown or 'its settings'}); "
                           f"resume with the scene and --set options of the original run, or start afresh "
                           f"with --overwrite")
-    if ck.scalars["method"] != scene.method.value:  # covered by the fingerprint; kept explicit
-        raise OutputError(f"checkpoint {ck.path} is for method {ck.scalars['method']}")
 
 
 def _differences(a, b, prefix: str = "") -> list[str]:

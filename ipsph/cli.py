@@ -15,10 +15,8 @@ from .params import METHOD_NAMES, RENDER_VIEWS
 
 # OpenMP threads that finish a parallel loop sleep instead of spinning (unless the user chose):
 # between the solver's ~20 parallel loops per step the other core is then free for the render
-# process. Default scene: 12 % less CPU, renders x1.225 instead of x1.28. Waking the sleeping
-# thread at each loop costs the solver 5-8 % on small scenes (DoubleDamBreak, IPSPH: 2.04-2.36 s
-# against 1.85-1.97 s per simulated second with libgomp's default); the Python API and the
-# benchmark's workers keep the default.
+# process; the Python API and the benchmark's workers keep the default (the trade-off measured:
+# docs/performance.md, "Measured design choices").
 OMP_POLICY = ("OMP_WAIT_POLICY", "passive")
 
 

@@ -30,8 +30,7 @@ from .errors import NumericalFailure
 
 # Cell size per axis, in units of the support H. Short cells along x (the axis along which a
 # row of cells is contiguous in memory) cut each row's candidate range close to the sphere's
-# chord without adding rows: on DamBreakModel H/4 tests 16 % fewer candidates' time than H
-# cubes (same-process A/B); H/2 in y and z too was slower (2.4x the rows per particle).
+# chord without adding rows (docs/performance.md, "Measured design choices").
 CELL_SHAPE = (0.25, 1.0, 1.0)
 
 
@@ -168,7 +167,6 @@ class NeighbourSearch:
         start = counting_sort(cells, grid.n_cells, order)
         self.boundary.reorder(order)
         self.use_boundary_sort(start)
-        return True
 
     def use_boundary_sort(self, boundary_start: np.ndarray) -> None:
         """Given the walls' cell offsets in the current grid, list each cell's wall candidates
@@ -239,7 +237,7 @@ class NeighbourSearch:
                 self.lists = NeighbourLists(n, self.k_fluid, self.k_boundary)
             lists = self.lists
             # fluid pairs are symmetric: gather j > i in parallel, then append each pair to the
-            # lower particle's row serially (DamBreakModel: 0.66x the time of a full gather)
+            # lower particle's row serially (cheaper than a full gather: docs/performance.md)
             gather_neighbours(xs, xs, fluid_start, g.origin, g.inv_cell, g.dims, self.h, True, True,
                               lists.fluid, lists.fluid_count)
             most_f = append_lower(lists.fluid, lists.fluid_count)

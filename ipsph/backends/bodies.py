@@ -13,8 +13,8 @@ The lists: nf, cf (fluid indices, counts), nb, cb (walls). The pair cache pair_g
 mf grad W_ij, (n, 3, K), used only when it has a row per particle.
 
 Why two stages per particle: the second loop has no indirection, so LLVM turns it into SIMD
-code (the kernel's sqrt, division and polynomial on 4 neighbours at once), twice as fast per
-pass as one scalar loop that does both (docs/performance.md).
+code (the kernel's sqrt, division and polynomial on 4 neighbours at once), faster than one
+scalar loop that does both (measured: docs/performance.md, "Measured design choices").
 """
 import numpy as np
 from numba import njit
@@ -81,7 +81,7 @@ def _weighted_gradient(n, buf, row, h):
 
 @njit(inline="always", fastmath=FAST)
 def _density_sums(n, buf, h, rho_self, keep_f):
-    """density_at's loop over fluid and walls (one loop: two were measured slower);
+    """density_at's loop over fluid and walls (one loop: two were slower, docs/performance.md);
     rho starts from rho_self; with `keep_f` (a constant at each call site) f = m_k g(r_ik) is
     also left in buf[C2]."""
     rho_w = rho_self
@@ -292,7 +292,7 @@ def viscosity_at(i, x, v, mf, rho, gb, lam, nf, cf, h, zeta, nu_dt, eps, standar
         buf[C5, k] = li + lam[j] if with_disp else 0.0
     vi0, vi1, vi2 = v[i, 0], v[i, 1], v[i, 2]
     if fill:  # two copies of the loop, one with the cache's stores (a runtime test inside
-        #       the loop stops LLVM vectorising it: 1.7 x the time of the pass)
+        #       the loop stops LLVM vectorising it)
         a0, a1, a2, s0, s1, s2, p0, p1, p2, dr = _viscosity_sums(i, n_f, buf, h, eps, mf, standard,
                                                                  True, pair_grad)
     else:

@@ -30,8 +30,7 @@ def cell_ids(x, origin, inv_cell, dims, out):
 def bounds(x):
     """(lo, hi) corners of the points' bounding box; NaN in both if any coordinate is not finite.
 
-    One pass instead of numpy's axis-0 min and max, which cost ~0.25 ms each on (n, 3) arrays
-    of a few thousand points: 3 % of a small scene's step.
+    One pass instead of numpy's axis-0 min and max (two passes, each slower: docs/performance.md).
     """
     lo = np.full(3, np.inf)
     hi = np.full(3, -np.inf)
@@ -53,7 +52,7 @@ def counting_sort_into(cells, n_cells, order, cell_start):
     entries, kept by the caller) becomes the CSR offsets: cell c holds order[cell_start[c]:
     cell_start[c + 1]]. Counts go one slot ahead, so after the prefix sum cell_start[c + 1] is
     cell c's start and serves as its fill cursor, ending at its end: no separate cursor array
-    (2x faster than with one on DoubleDamBreak's 137k cells).
+    (faster than with one: docs/performance.md).
     """
     cell_start[:] = 0
     for i in range(cells.shape[0]):

@@ -8,8 +8,8 @@ Arguments follow one order: positions and per-particle inputs, the lists (nf, cf
 indices and counts; nb, cb: walls), scalars, outputs last.
 
 Also here: the serial reductions (fixed order: the same bits whatever the thread count) and the
-element-wise updates a step needs (one loop each instead of numpy temporaries: at a few thousand
-particles numpy's broadcast of a (3,) vector over (n, 3) alone took 50 us).
+element-wise updates a step needs (one loop each instead of numpy temporaries, whose broadcast of a
+(3,) vector over (n, 3) costs more than the arithmetic: docs/performance.md).
 """
 import os
 

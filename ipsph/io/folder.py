@@ -120,7 +120,7 @@ class RunFolder:
 
     def _configure_renderer(self, worker):
         # No GL probe here: the render worker is itself a child process, so a missing GL stack
-        # crashes it, not the run, and it starts while the solver sets up (a probe costs ~1 s).
+        # crashes it, not the run, and it starts while the solver sets up (a probe costs time).
         from .. import render
         sim, scene = self.sim, self.scene
         speed = max((float(np.linalg.norm(f.velocity)) for f in scene.fluids), default=0.0)
