@@ -1,19 +1,4 @@
-"""SPlisHSPlasH JSON scenes -> ipsph scenes.
-
-`scene_dict(path)` converts a SPlisHSPlasH scene (both the current layout, with solver blocks
-"DFSPH" / "Projective Fluids" in Configuration and viscosity in "Materials", and the 2.0.0
-layout, everything flat in "Configuration") into ipsph's TOML dict form plus one warning
-string listing every key that is not supported. `ipsph.scene.load_scene` validates that dict
-with the TOML rules. Keys that would make a different simulation (emitters, dynamic
-bodies, dense sampling, other pressure solvers, multiphase) are refused with a ConfigError;
-keys that only affect visuals, caching or secondary physics are reported in the warning.
-
-FluidBlocks: SPlisHSPlasH 2.x (`SceneLoader::readScene`) applies the block's transform to its
-corners component-wise, min' = scale * start + translation, max' = scale * end + translation,
-and `SimulatorBase::createFluidBlocks` then fills round((max' - min') / 2r) - 1 particles per
-axis from min' + 2r. We store min'/max' with an identity transform, so the sampler only does the
-lattice (DamBreakModel: 19 x 19 x 19 = 6,859 particles).
-"""
+"""The SPlisHSPlasH JSON -> ipsph dict converter (see the package docstring)."""
 from __future__ import annotations
 
 import json
@@ -21,9 +6,9 @@ import math
 from pathlib import Path
 from typing import Any
 
-from .errors import ConfigError, read_text
+from ..errors import ConfigError, read_text
 
-__all__ = ["scene_dict", "IMPORT_NOTES", "DEFAULT_END_TIME"]
+__all__ = ["scene_dict", "DEFAULT_END_TIME"]
 
 # SPlisHSPlasH's own defaults where a scene leaves a key out (doc/file_format.md, Simulation.cpp)
 _SPH_DEFAULTS = {"particleRadius": 0.025, "simulationMethod": 4, "timeStepSize": 0.001,
@@ -57,50 +42,7 @@ _NOTES = {
     "resolutionSDF": "ipsph samples meshes itself", "enableZSort": "ipsph sorts by cell",
 }
 
-IMPORT_NOTES = """
-## Importing SPlisHSPlasH scenes
 
-`ipsph run scene.json` (or `load_scene("scene.json")`) reads a SPlisHSPlasH scene, in the
-current layout (solver settings in `Configuration.DFSPH` / `Configuration."Projective Fluids"`,
-viscosity in `Materials`) or the 2.0.0 layout (everything flat in `Configuration`). The scene is
-converted to the TOML layout above first, then `--set` overrides are applied and the whole is
-validated as a TOML scene, so override keys are ipsph's (`--set simulation.method=ipsph`).
-
-| SPlisHSPlasH | ipsph |
-|---|---|
-| `particleRadius`, `gravitation` | `simulation.particle_radius`, `simulation.gravity` |
-| `simulationMethod` 4 / 5 (default 4) | `simulation.method` dfsph / pf; any other value is refused |
-| `stopAt` (if > 0) | `simulation.end_time`; otherwise 2.0 s |
-| `timeStepSize` (default 0.001) | `time_step.dt_initial` |
-| `cflFactor` (default 0.5), `cflMaxTimeStepSize` (default 0.005), `cflMinTimeStepSize` (default 1e-4) | `time_step.cfl_factor`, `dt_max`, `dt_min` |
-| `cflMethod` 0 (fixed step) | `dt_min = dt_max = dt_initial = timeStepSize`; 2 is treated as 1 (warned) |
-| `DFSPH`: `minIterations`, `maxIterations`, `maxError` (%), `maxIterationsV`, `maxErrorV` (%), `enableDivergenceSolver` | `solver.dfsph.density_min_iterations`, `density_max_iterations`, `density_error_pct`; `solver.divergence.max_iterations`, `error_pct`, `enabled` |
-| `Projective Fluids`: `stiffness` | `solver.pf.stiffness` |
-| `Projective Fluids`: `minIterations`, `maxIterations`, `maxError` (%) | `solver.ipsph.min_passes`, `max_passes`, `density_error_pct` (used when you switch the method to ipsph; plain PF runs `solver.pf.passes` = 3 fixed passes, as SPlisHSPlasH does) |
-| 2.0.0 flat `maxIterations`, `maxError`, ... | as the block of the scene's method; `stiffness` -> `solver.pf.stiffness` |
-| `Materials[].density0`, `viscosity` (also inside a `"... viscosity"` block) | `simulation.density0`, `simulation.viscosity` (XSPH zeta) |
-| `Materials[].viscosityMethod` 1 (Standard) with its `viscosity` | `simulation.standard_viscosity` (nu, the same model), `simulation.viscosity` = 0 |
-| `dataExportFPS` | `output.fps` |
-| `cameraPosition`, `cameraLookat` | `render.camera_position`, `render.focal_point` |
-| `FluidBlocks[]`: `start`, `end`, `translation`, `scale`, `initialVelocity` | `[[fluid]] box` with min = scale * start + translation, max = scale * end + translation (as SPlisHSPlasH's scene loader), `velocity` |
-| `FluidModels[]`: `particleFile` (a mesh), `translation`, `scale`, `rotationAxis`, `rotationAngle` (radians), `initialVelocity` | `[[fluid]] mesh`, `translate`, `scale`, `rotate_axis`, `rotate_deg`, `velocity` |
-| `RigidBodies[]`: `geometryFile`, `translation`, `scale`, `rotationAxis`, `rotationAngle` (radians), `isWall`, `mapInvert` | `[[boundary]] mesh`, ..., `role` = container if `isWall` or `mapInvert`, else obstacle |
-
-Mesh paths are relative to the scene file, as in SPlisHSPlasH (`../models/UnitBox.obj`).
-
-Refused (ConfigError): `simulationMethod` other than 4 or 5, `denseMode` other than 0,
-`isDynamic` bodies, `Emitters`, `AnimationFields`, `sim2D`, partio particle files as fluid models,
-`invert`ed fluid models, several materials with different density or viscosity.
-
-Warned about, in one message (`Scene.warnings`): every other key, e.g.
-`boundaryHandlingMethod` (ipsph always uses Akinci et al. 2012 boundary particles),
-`numberOfStepsPerRenderUpdate`, `mapResolution`, `color`, `surfaceTension`, and a
-`viscosityMethod` other than XSPH or Standard: its `viscosity` value is then used as the XSPH
-coefficient (method 0, None, gives zeta = 0). The Standard model's wall friction
-(`viscosityBoundary`, default 0) is not imported (warned if set). Where a key is absent,
-SPlisHSPlasH's own default is used (listed in the table), except `end_time`, which defaults to
-2.0 s.
-"""
 
 
 def scene_dict(path: Path, where: str | None = None) -> tuple[dict, tuple[str, ...]]:
