@@ -29,6 +29,7 @@ import numba as nb
 import numpy as np
 
 from ipsph import meshes, model
+from ipsph.inside import inside_mesh
 from ipsph.errors import ConfigError
 
 if TYPE_CHECKING:
@@ -155,7 +156,7 @@ def _sample_fluid(spec: model.FluidSpec, r: float) -> np.ndarray:
                              allow_open=spec.allow_open_mesh)
     origin, counts = _mesh_lattice(report.bounds, d)
     lattice = _grid(origin, counts, d)
-    inside = meshes.inside_mesh(lattice, mesh, d, closed=report.closed)
+    inside = inside_mesh(lattice, mesh, d, closed=report.closed)
     return np.ascontiguousarray(lattice[inside])
 
 
@@ -339,7 +340,7 @@ def _inside_boundary(points: np.ndarray, spec: model.BoundarySpec, r: float) -> 
         local = meshes.inverse_transform_points(points, _rigid(spec.transform))
         return np.all((local > lo) & (local < hi), axis=1)
     mesh, report = _prepared(_mesh_path(spec), spec.transform, need_closed=False, allow_open=True)
-    return meshes.inside_mesh(points, mesh, 2.0 * r, closed=report.closed)
+    return inside_mesh(points, mesh, 2.0 * r, closed=report.closed)
 
 
 def solid_mask(points: np.ndarray, boundaries: Sequence[model.BoundarySpec], radius: float) -> np.ndarray:

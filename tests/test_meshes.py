@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ipsph import meshes, model
+from ipsph import inside, meshes, model
 from ipsph.errors import MeshError
 
 pv = pytest.importorskip("pyvista")
@@ -162,7 +162,7 @@ def test_aligned_box_detection():
 # ----------------------------------------------------------------------------- inside test
 def test_winding_number_of_a_box():
     box = unit_box()
-    w = meshes.winding_number(np.array([[0.5, 0.5, 0.5], [1.5, 0.5, 0.5], [0.5, 0.5, 1.0 + 1e-9],
+    w = inside.winding_number(np.array([[0.5, 0.5, 0.5], [1.5, 0.5, 0.5], [0.5, 0.5, 1.0 + 1e-9],
                                         [0.9, 0.1, 0.99]]), box)
     # inside 1, outside 0, 1e-9 off a face ~0: the face's -2π cancels the other faces' +2π, leaving
     # O(1e-8) cancellation error at that distance; 1e-6 is far below the 0.5 decision threshold
@@ -175,7 +175,7 @@ def test_winding_number_of_a_sphere_against_distance():
     p = rng.uniform(-1.5, 1.5, size=(2000, 3))
     rad = np.linalg.norm(p, axis=1)
     clear = np.abs(rad - 1.0) > 0.01  # the facets deviate from the sphere by < 0.01
-    w = meshes.winding_number(p, sphere)
+    w = inside.winding_number(p, sphere)
     np.testing.assert_array_equal(w[clear] > 0.5, rad[clear] < 1.0)
 
 
@@ -190,7 +190,7 @@ def test_inside_mesh_union_of_overlapping_boxes():
     p = np.stack(np.meshgrid(g, g, g, indexing="ij"), axis=-1).reshape(-1, 3)
     in_a = np.all((p > 0) & (p < 1), axis=1)
     in_b = np.all((p > [0.5, 0.25, 0.25]) & (p < [1.5, 0.75, 0.75]), axis=1)
-    got = meshes.inside_mesh(p, both, 0.05)
+    got = inside.inside_mesh(p, both, 0.05)
     np.testing.assert_array_equal(got, in_a | in_b)
 
 
@@ -200,14 +200,14 @@ def test_inside_mesh_matches_winding_number_on_the_ant():
     rng = np.random.default_rng(2)
     b = np.array(report.bounds).reshape(3, 2)
     p = rng.uniform(b[:, 0], b[:, 1], size=(20_000, 3))
-    np.testing.assert_array_equal(meshes.inside_mesh(p, ant, 1.0), meshes.winding_number(p, ant) > 0.5)
+    np.testing.assert_array_equal(inside.inside_mesh(p, ant, 1.0), inside.winding_number(p, ant) > 0.5)
 
 
 def test_inside_mesh_open_mesh_uses_winding_number():
     hemi = pv.Sphere(radius=1.0, end_phi=90.0).triangulate()  # open bowl
     p = np.array([[0.0, 0.0, 0.5], [0.0, 0.0, -0.5], [3.0, 0.0, 0.0]])
-    w = meshes.winding_number(p, hemi)
-    np.testing.assert_array_equal(meshes.inside_mesh(p, hemi, 0.1, closed=False), w > 0.5)
+    w = inside.winding_number(p, hemi)
+    np.testing.assert_array_equal(inside.inside_mesh(p, hemi, 0.1, closed=False), w > 0.5)
     assert 0.0 < w[0] < 1.0 and math.isfinite(w[1])
 
 
@@ -227,7 +227,7 @@ def test_fast_winding_number_matches_exact():
     p = np.vstack([rng.uniform(-2, 2, size=(1000, 3)),
                    rng.normal(size=(1000, 3))])
     p[1000:] *= (1.0 + rng.uniform(-0.02, 0.02, size=(1000, 1))) / np.linalg.norm(p[1000:], axis=1)[:, None]
-    exact = meshes.winding_number(p, sphere)
-    fast = meshes.fast_winding_number(p, sphere)
-    assert sphere.n_cells > 4 * meshes.TRIANGLES_PER_CLUSTER
+    exact = inside.winding_number(p, sphere)
+    fast = inside.fast_winding_number(p, sphere)
+    assert sphere.n_cells > 4 * inside.TRIANGLES_PER_CLUSTER
     assert np.abs(fast - exact).max() < 0.05

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ipsph import meshes, model, sampling
+from ipsph import inside, meshes, model, sampling
 from ipsph.errors import ConfigError, MeshError
 
 pv = pytest.importorskip("pyvista")
@@ -115,7 +115,7 @@ def test_fluid_mesh_volume_and_inside(tmp_path, loader, n_target):
     spec = model.FluidSpec(loader, "mesh", mesh=path)
     x = sampling.fluid_positions(spec, d / 2)
     assert len(x) * d**3 == pytest.approx(report.volume, rel=0.03)
-    assert meshes.winding_number(x, mesh).min() > 0.5
+    assert inside.winding_number(x, mesh).min() > 0.5
     assert sampling.estimate_fluid_count(spec, d / 2) == pytest.approx(len(x), rel=0.03)
 
 
@@ -153,7 +153,7 @@ def test_open_fluid_mesh_refused_unless_allowed(tmp_path):
     spec = model.FluidSpec("plane", "mesh", mesh=path, allow_open_mesh=True)
     x = sampling.fluid_positions(spec, r)
     mesh, _ = meshes.prepare_mesh(path, need_closed=False)
-    assert len(x) > 0 and meshes.winding_number(x, mesh).min() > 0.5
+    assert len(x) > 0 and inside.winding_number(x, mesh).min() > 0.5
 
 
 # ----------------------------------------------------------------------------- boundary boxes
