@@ -17,10 +17,7 @@ Conventions (r particle radius, d = 2r):
 """
 from __future__ import annotations
 
-import hashlib
 import math
-import os
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -28,7 +25,7 @@ from typing import TYPE_CHECKING
 import numba as nb
 import numpy as np
 
-from ipsph import meshes, model
+from ipsph import meshes, model, sample_cache
 from ipsph.inside import inside_mesh
 from ipsph.errors import ConfigError
 
@@ -426,77 +423,14 @@ def _nearest_kernel(query, sorted_pts, sorted_ids, sorted_keys, lo, h, dims, exc
             out[i] = math.sqrt(best)
 
 
-# ----------------------------------------------------------------------------- disk cache
-def cache_dir() -> Path:
-    """$IPSPH_CACHE_DIR, else ~/.cache/ipsph."""
-    env = os.environ.get("IPSPH_CACHE_DIR")
-    return Path(env).expanduser() if env else Path.home() / ".cache" / "ipsph"
-
-
 def cache_key(kind: str, spec, radius: float) -> str:
-    """sha256 over kind, sampler version, radius, geometry (box corners or mesh bytes), transform, flags."""
-    h = hashlib.sha256()
-
-    def put(*items):
-        for it in items:
-            h.update(repr(it).encode())
-            h.update(b"\0")
-
-    t = spec.transform
-    put(SAMPLER_VERSION, kind, float(radius).hex(), spec.shape,
-        tuple(float(v).hex() for v in t.translate), tuple(float(v).hex() for v in t.scale),
-        tuple(float(v).hex() for v in t.rotate_axis), float(t.rotate_deg).hex(),
-        getattr(spec, "allow_open_mesh", None))
-    if spec.shape == "box":
-        put(tuple(float(v).hex() for v in spec.box_min), tuple(float(v).hex() for v in spec.box_max))
-    else:
-        path = _mesh_path(spec).expanduser().resolve()
-        put(path.suffix.lower())
-        try:
-            h.update(hashlib.sha256(path.read_bytes()).digest())
-        except OSError:
-            put("unreadable", str(path))  # the sampler itself raises MeshError
-    return h.hexdigest()
-
-
-def _cache_read(path: Path) -> np.ndarray | None:
-    try:
-        arr = np.load(path, allow_pickle=False)
-    except Exception:  # noqa: BLE001 - missing or unreadable: resample
-        return None
-    if arr.dtype != np.float64 or arr.ndim != 2 or arr.shape[1] != 3 or not np.all(np.isfinite(arr)):
-        return None
-    return np.ascontiguousarray(arr)
-
-
-def _cache_write(path: Path, arr: np.ndarray) -> None:
-    """Best effort: temp file + atomic rename, so a reader never sees a partial file."""
-    tmp = None
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=path.stem, suffix=".tmp", dir=path.parent)
-        with os.fdopen(fd, "wb") as fh:
-            np.save(fh, arr, allow_pickle=False)
-        os.replace(tmp, path)
-        tmp = None
-    except Exception:  # noqa: BLE001 - a cache that cannot be written only costs time
-        pass
-    finally:
-        if tmp is not None:
-            try:
-                os.unlink(tmp)
-            except OSError:
-                pass
+    """The disk-cache key of a fluid's or wall's samples (sample_cache.cache_key)."""
+    return sample_cache.cache_key(kind, spec, radius, SAMPLER_VERSION,
+                                  _mesh_path(spec) if spec.shape != "box" else None)
 
 
 def _cached(kind: str, spec, r: float, use_cache: bool, sample) -> np.ndarray:
     _shape(spec)
     if not use_cache:
         return sample()
-    path = cache_dir() / f"{kind}-{cache_key(kind, spec, r)}.npy"
-    hit = _cache_read(path)
-    if hit is not None:
-        return hit
-    arr = np.ascontiguousarray(sample(), dtype=np.float64)
-    _cache_write(path, arr)
-    return arr
+    return sample_cache.cached(f"{kind}-{cache_key(kind, spec, r)}", sample)
