@@ -74,7 +74,7 @@ class Boundary:
     def state_dict(self) -> dict[str, np.ndarray]:
         """Positions, volumes and masses in their current (cell-sorted) order: the volumes were
         summed in the original order, so a continuation takes them as they are."""
-        return {"x": self.x, "psi": self.psi, "m": self.m}
+        return {"x": self.x.copy(), "psi": self.psi.copy(), "m": self.m.copy()}
 
     def load_state_dict(self, d: dict[str, np.ndarray]) -> None:
         if len(d["x"]) != len(self.x):

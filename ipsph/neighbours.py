@@ -184,7 +184,7 @@ class NeighbourSearch:
         (the lists are rebuilt by the next `update`; the walls' order is the boundary's)."""
         g = self.grid
         return {"k_fluid": int(self.k_fluid), "k_boundary": int(self.k_boundary),
-                "grid": None if g is None else {"origin": g.origin, "cell": g.cell, "dims": g.dims}}
+                "grid": None if g is None else {"origin": g.origin.copy(), "cell": g.cell.copy(), "dims": g.dims.copy()}}
 
     def load_state_dict(self, d: dict) -> None:
         """Put the grid and strides back, before any `update`. The boundary must already be in

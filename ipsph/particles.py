@@ -56,8 +56,8 @@ class ParticleState:
         return {name: getattr(self, name) for name in self._names}
 
     def state_dict(self) -> dict[str, np.ndarray]:
-        """Every registered array, on the host (a checkpoint's particle part)."""
-        return {name: self.be.to_host(getattr(self, name)) for name in self._names}
+        """A copy of every registered array, on the host (a checkpoint's particle part)."""
+        return {name: np.array(self.be.to_host(getattr(self, name))) for name in self._names}
 
     def load_state_dict(self, arrays: dict[str, np.ndarray]) -> None:
         """Replace the registered arrays (checkpoint restore); names must match exactly."""

@@ -237,7 +237,8 @@ class Simulation:
     # -- state ------------------------------------------------------------------------------
     def state_dict(self) -> dict:
         """Everything a bit-identical continuation needs, between two steps: the particles, the
-        walls and the neighbour grid in their current order, and the clock."""
+        walls and the neighbour grid in their current order, and the clock (copies: later steps
+        do not change it)."""
         return {"particles": self.state.state_dict(), "boundary": self.boundary.state_dict(),
                 "search": self.search.state_dict(), "method": self.method.state_dict(),
                 "clock": {"time": self.time, "steps": self.steps, "clamped_steps": int(self.clamped_steps),
