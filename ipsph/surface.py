@@ -166,6 +166,16 @@ def write_surface(path, s: Surface, fmt: str = "vtp", time: float | None = None)
     path.parent.mkdir(parents=True, exist_ok=True)
     if fmt == "vtp":
         return write_vtp(path, to_polydata(s, time))
+    if fmt == "obj":  # by hand: meshio's faces do not reference the normals ("f a//a"), so importers drop them
+        f = s.triangles + 1
+        faces = np.stack([f, f], axis=2).reshape(-1, 6)
+        with atomic_path(path, "surface") as tmp, open(tmp, "w") as out:
+            out.write(f"# ipsph surface{'' if time is None else f' t = {time!r} s'}: {len(s.vertices)} vertices, "
+                      f"{len(s.triangles)} triangles, outward normals\n")
+            np.savetxt(out, s.vertices, fmt="v %.7g %.7g %.7g")
+            np.savetxt(out, s.normals, fmt="vn %.6g %.6g %.6g")
+            np.savetxt(out, faces, fmt="f %d//%d %d//%d %d//%d")
+        return os.path.getsize(path)
     import meshio
 
     point_data = {}
@@ -176,11 +186,9 @@ def write_surface(path, s: Surface, fmt: str = "vtp", time: float | None = None)
             for k, axis in enumerate("xyz"):
                 point_data[f"v{axis}"] = s.velocity[:, k]
             point_data["speed"] = s.speed
-    elif fmt == "obj":
-        point_data["obj:vn"] = s.normals
     else:
         raise ValueError(f"surface format {fmt!r} is not one of {', '.join(FORMATS)}")
-    mesh = meshio.Mesh(s.vertices, [("triangle", s.triangles)], point_data=point_data)
+    mesh = meshio.Mesh(s.vertices, [("triangle", s.triangles.astype(np.int32))], point_data=point_data)
     with atomic_path(path, "surface") as tmp:
         meshio.write(tmp, mesh, file_format=fmt, **({"binary": True} if fmt == "ply" else {}))
     return os.path.getsize(path)
@@ -259,7 +267,7 @@ def surface_output(out_dir, *, fmt: str = "vtp", overrides=(), threads: int | No
                 series.add_surface(t, out_io.surface_file(i, "vtp"))
             continue
         try:
-            if vtp.is_file():
+            if vtp.is_file() and not overrides:  # the same settings: convert, do not reconstruct again
                 surf = read_vtp(vtp)
             else:
                 pts, fields, _ = read_particles(out / f)
