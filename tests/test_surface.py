@@ -206,3 +206,38 @@ def test_pvd_lists_surfaces_as_part_2_and_resume_drops_the_later_ones(tmp_path):
     assert back.surfaces == {0.0: surface_file(0), 0.08: surface_file(2)} and back.boundary_file == "boundary.vtu"
     back.truncate_after(0.04)
     assert PvdSeries.load(tmp_path / "run.pvd").surfaces == {0.0: surface_file(0)}
+
+
+@pytest.fixture(scope="module")
+def gl():
+    from ipsph.render import gl_available
+    ok, reason = gl_available()
+    if not ok:
+        pytest.skip(reason)
+
+
+def test_surface_renders_show_the_mesh_with_the_walls(gl, dam_break, tmp_path):
+    import imageio.v3 as iio
+
+    from ipsph.model import RenderConfig
+    from ipsph.render import FrameRenderer, read_surface, render_output
+    from ipsph.io.provenance import read_run_json
+    small = {"width": 320, "height": 180}
+    png, = render_output(dam_break, mode="surface", frames=slice(-1, None), config_overrides=small)
+    img = iio.imread(png)[..., :3].astype(int)
+    run = read_run_json(dam_break / "run.json")
+    with FrameRenderer(RenderConfig(**small), run["domain_bounds"], R, tuple(run["render"]["speed_range"])
+                       if run.get("render") else (0.0, 4.0), read_surface(dam_break / "boundary_surface.vtp")) as r:
+        empty = r.surface_image(None, time=0.56).astype(int)  # walls, bar and labels only
+    changed = np.abs(img - empty).sum(axis=2) > 30
+    assert changed.mean() > 0.02  # the surface covers part of the tank
+    fluid = img[changed]
+    assert (fluid[:, 2] >= fluid[:, 0]).mean() > 0.9  # blue to white: the speed colour map
+
+
+def test_surface_mode_renders_during_a_run(gl, tmp_path):
+    out = tmp_path / "out"
+    res = ipsph("run", "-o", out, "--end-time", 0.08, "--set", "simulation.particle_radius=0.04",
+                "--set", "render.mode=surface", "--set", "render.width=320", "--set", "render.height=180", "--quiet")
+    assert res.returncode == 0, res.stderr
+    assert len(list((out / "surfaces").glob("*.vtp"))) == 3 == len(list((out / "renders").glob("*.png")))
