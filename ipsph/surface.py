@@ -218,12 +218,6 @@ def container_bounds_of(scene_dict: dict) -> list[float] | None:
 
 
 # -- `ipsph surface OUT` ---------------------------------------------------------------------------
-def _frame_index(file: str, position: int) -> int:
-    import re
-    m = re.search(r"(\d+)\.vtu$", file)
-    return int(m.group(1)) if m else position
-
-
 def surface_output(out_dir, *, fmt: str = "vtp", overrides=(), threads: int | None = None, log=None) -> dict:
     """Reconstruct every frame of a finished or running output folder that has no surface in `fmt` yet.
 
@@ -236,6 +230,7 @@ def surface_output(out_dir, *, fmt: str = "vtp", overrides=(), threads: int | No
     from .io.provenance import read_run_json
     from .io.pvd import PvdSeries
     from .io.vtu import read_particles
+    from .render import _frame_index
     from .scene import surface_config
 
     log = log or (lambda msg: print(msg, file=sys.stderr))

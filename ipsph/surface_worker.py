@@ -47,6 +47,9 @@ def _worker(jobs, results):
             except surface.SurfaceFailed as exc:
                 results.put(("failed", index, time, str(exc)))
                 continue
+            except Exception as exc:  # e.g. a WriteError (disk full): this frame fails, the next may not
+                results.put(("failed", index, time, f"{type(exc).__name__}: {' '.join(str(exc).split())}"))
+                continue
             results.put(("ok", index, time, name, s.seconds, len(s.triangles)))
     except Exception as exc:  # reported by the parent as one warning line
         results.put(("error", -1, 0.0, f"{type(exc).__name__}: {' '.join(str(exc).split())}"))
