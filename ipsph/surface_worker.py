@@ -51,6 +51,9 @@ def _worker(jobs, results):
                 results.put(("failed", index, time, f"{type(exc).__name__}: {' '.join(str(exc).split())}"))
                 continue
             results.put(("ok", index, time, name, s.seconds, len(s.triangles)))
+        import resource
+        use = resource.getrusage(resource.RUSAGE_SELF)
+        results.put(("done", -1, 0.0, use.ru_utime + use.ru_stime))
     except Exception as exc:  # reported by the parent as one warning line
         results.put(("error", -1, 0.0, f"{type(exc).__name__}: {' '.join(str(exc).split())}"))
 
@@ -69,6 +72,7 @@ class BackgroundSurfacer:
         self.written: dict[int, str] = {}    # frame index -> surface file (relative to OUT)
         self.missing: dict[int, str] = {}    # frame index -> why it has no surface
         self.seconds = 0.0                   # reconstruction time in the child, summed
+        self.cpu_seconds = None              # the child's CPU time, reported when it ends
         self.error: str | None = None
         self._pending: dict[int, float] = {}  # submitted, not reported yet: index -> time
         self._done: list[tuple[int, float, str]] = []
@@ -86,6 +90,9 @@ class BackgroundSurfacer:
                 break
             if status == "error":
                 self.error = rest[0]
+                continue
+            if status == "done":  # the child's CPU seconds over its life: imports and every surface
+                self.cpu_seconds = rest[0]
                 continue
             self.finished += 1
             self._pending.pop(index, None)
@@ -169,4 +176,5 @@ class BackgroundSurfacer:
     def summary(self) -> dict:
         """For run.json: counts, the child's reconstruction seconds, and the frames without a surface."""
         return {"enabled": True, "written": len(self.written), "reconstruction_seconds": self.seconds,
+                "process_cpu_seconds": self.cpu_seconds,
                 "missing": {str(k): v for k, v in sorted(self.missing.items())}}

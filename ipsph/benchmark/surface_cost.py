@@ -29,7 +29,7 @@ OVERHEAD_TARGET = 0.25   # surfaces may slow the default scene's run by at most 
 SECONDS_TARGET = 10.0    # a 1M-particle frame in at most 10 s on 2 cores (issue 20)
 
 _ONE = r"""
-import json, sys, time
+import json, resource, sys, time
 import numpy as np
 from ipsph.surface import reconstruct
 from ipsph.scene import surface_config
@@ -42,9 +42,11 @@ x += np.random.default_rng(20).uniform(-0.25 * r, 0.25 * r, x.shape)
 v = np.zeros_like(x)
 v[:, 0] = 3.0 * x[:, 1] / (side * 2 * r)
 cfg = surface_config({}, overrides)
-t0 = time.perf_counter()
+cpu = lambda: sum(resource.getrusage(resource.RUSAGE_SELF)[:2])
+t0, c0 = time.perf_counter(), cpu()
 s = reconstruct(x, v, r, 1000.0, cfg)
-print(json.dumps({"particles": len(x), "seconds": time.perf_counter() - t0, "triangles": len(s.triangles),
+print(json.dumps({"particles": len(x), "seconds": time.perf_counter() - t0, "cpu_seconds": cpu() - c0,
+                  "triangles": len(s.triangles),
                   "vertices": len(s.vertices), "config": cfg.__dict__}))
 """
 
@@ -74,17 +76,19 @@ def surface_seconds(n: int, threads: int, repeats: int, overrides=(), timeout: f
         row["loadavg"] = os.getloadavg()[0]
         runs.append(row)
         log(f"surface of {row['particles']:,} particles {k + 1}/{repeats}: {row['seconds']:.2f} s on {threads} "
-            f"threads, {row['triangles']:,} triangles, others {row['others_cores']:.2f} cores")
+            f"threads ({row['cpu_seconds']:.2f} CPU s), {row['triangles']:,} triangles, others "
+            f"{row['others_cores']:.2f} cores")
     good = [r for r in runs if "seconds" in r]
     return {"target": n, "threads": threads, "runs": runs,
             "particles": good[0]["particles"] if good else None,
             "triangles": good[0]["triangles"] if good else None,
             "seconds_median": statistics.median(r["seconds"] for r in good) if good else float("nan"),
+            "cpu_seconds_median": statistics.median(r["cpu_seconds"] for r in good) if good else float("nan"),
             "others_cores_median": statistics.median(r["others_cores"] for r in good) if good else float("nan")}
 
 
 def sizes_table(rows: list[dict], markdown: bool) -> str:
-    head = ["particles", "threads", "s / frame (median)", "triangles", "others' cores", "1M target"]
+    head = ["particles", "threads", "s / frame (median)", "CPU s / frame", "triangles", "others' cores", "1M target"]
     lines = (["| " + " | ".join(head) + " |", "|" + "---|" * len(head)] if markdown
              else ["  ".join(f"{h:>18s}" for h in head)])
     for r in rows:
@@ -93,6 +97,7 @@ def sizes_table(rows: list[dict], markdown: bool) -> str:
             ok = "met" if r["seconds_median"] <= SECONDS_TARGET else "NOT met"
             ok = f"<= {SECONDS_TARGET:.0f} s: {ok}"
         cells = [f"{r['particles'] or r['target']:,}", str(r["threads"]), f"{r['seconds_median']:.2f}",
+                 f"{r['cpu_seconds_median']:.2f}",
                  f"{r['triangles'] or 0:,}", f"{r['others_cores_median']:.2f}", ok]
         lines.append(("| " + " | ".join(cells) + " |") if markdown else "  ".join(f"{c:>18s}" for c in cells))
     return "\n".join(lines)
