@@ -333,21 +333,11 @@ class OutputFolder:
         return bool(done)
 
     def _close_surfaces(self) -> None:
-        s = self.surfacer
-        try:
-            s.close(_warn, notice=lambda n: print(f"ipsph: reconstructing the surfaces of the last {n} frames "
-                                                  f"(Ctrl-C skips them; `ipsph surface {self.out}` makes them later)",
-                                                  file=sys.stderr))
-        except KeyboardInterrupt:
-            s.terminate("interrupted after the run; `ipsph surface` makes it")
+        """Wait for the last surfaces (Ctrl-C skips them), list them, say which frames have none."""
+        self.surfacer.finish(self.out, self.frames, _warn)
         if self._surfaces_done():
             self.pvd.write()
-        self.info["surface"] = {**self.info.get("surface", {}), **s.summary()}
-        if s.missing:
-            listed = ", ".join(str(k) for k in sorted(s.missing)[:20]) + (" ..." if len(s.missing) > 20 else "")
-            print(f"ipsph: warning: {len(s.missing)} of {self.frames} frames have no surface (frames {listed}; "
-                  f"reasons in run.json surface.missing); `ipsph surface {self.out}` makes those it can",
-                  file=sys.stderr)
+        self.info["surface"] = {**self.info.get("surface", {}), **self.surfacer.summary()}
         self.surfacer = None
 
     def _render_failed(self) -> None:

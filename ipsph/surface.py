@@ -252,6 +252,7 @@ def surface_output(out_dir, *, fmt: str = "vtp", overrides=(), threads: int | No
     set_threads(threads)
     series = PvdSeries.load(out / out_io.RUN_PVD)
     written, failed, skipped = [], {}, 0
+    listed = _time.perf_counter()
     for k, (t, f) in enumerate(series.frames):
         i = _frame_index(f, k)
         target = out / out_io.surface_file(i, fmt)
@@ -270,12 +271,14 @@ def surface_output(out_dir, *, fmt: str = "vtp", overrides=(), threads: int | No
             write_surface(target, surf, fmt, time=t)
         except SurfaceFailed as exc:
             failed[i] = str(exc)
-            log(f"ipsph: warning: frame {i} (t = {t:.4g} s): no surface: {exc}")
+            log(f"ipsph: warning: frame {i} (t = {t:.4g} s) has no surface: {exc}")
             continue
         written.append(target)
         if fmt == "vtp":
             series.add_surface(t, out_io.surface_file(i, "vtp"))
-            series.write()
+            if _time.perf_counter() - listed > 2.0:  # a reader sees progress; no rewrite per surface
+                series.write()
+                listed = _time.perf_counter()
     if fmt == "vtp":
         series.write()
         if running and written:

@@ -173,6 +173,19 @@ class BackgroundSurfacer:
             self.missing[index] = why
         self._pending.clear()
 
+    def finish(self, out: Path, frames: int, log) -> None:
+        """The end of a run: wait for the frames in flight (Ctrl-C skips them), then one line listing the
+        frames without a surface (`collect()` still returns the last surfaces written)."""
+        try:
+            self.close(log, notice=lambda n: log(f"ipsph: reconstructing the surfaces of the last {n} frames "
+                                                 f"(Ctrl-C skips them; `ipsph surface {out}` makes them later)"))
+        except KeyboardInterrupt:
+            self.terminate("interrupted after the run; `ipsph surface` makes it")
+        if self.missing:
+            listed = ", ".join(str(k) for k in sorted(self.missing)[:20]) + (" ..." if len(self.missing) > 20 else "")
+            log(f"ipsph: warning: {len(self.missing)} of {frames} frames have no surface (frames {listed}; reasons "
+                f"in run.json surface.missing); `ipsph surface {out}` makes those it can")
+
     def summary(self) -> dict:
         """For run.json: counts, the child's reconstruction seconds, and the frames without a surface."""
         return {"enabled": True, "written": len(self.written), "reconstruction_seconds": self.seconds,
