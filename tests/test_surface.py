@@ -95,6 +95,18 @@ def test_smoothing_and_cube_size_do_what_the_reference_says():
     assert base.velocity is None
 
 
+def test_surface_settings_are_validated_like_every_scene_key():
+    from ipsph.errors import ConfigError
+    from ipsph.scene import default_scene_path, load_scene, surface_config
+    scene = load_scene(default_scene_path(), ["render.mode=surface", "surface.cube_size=0.5"])
+    assert scene.render.mode == "surface" and scene.surface.cube_size == 0.5 and not scene.output.surface
+    with pytest.raises(ConfigError, match="particles, surface"):
+        load_scene(default_scene_path(), ["render.mode=mesh"])
+    with pytest.raises(ConfigError, match="surface.iso_threshold"):
+        surface_config({}, ["surface.iso_threshold=1.5"])
+    assert surface_config({"surface": {"decimate": True}}).decimate  # run.json's stored table
+
+
 def test_bad_frames_fail_with_one_line():
     with pytest.raises(SurfaceFailed, match="no fluid particles"):
         reconstruct(np.zeros((0, 3)), None, R, 1000.0)
