@@ -257,3 +257,11 @@ def test_surface_mode_renders_during_a_run(gl, tmp_path):
                 "--set", "render.mode=surface", "--set", "render.width=320", "--set", "render.height=180", "--quiet")
     assert res.returncode == 0, res.stderr
     assert len(list((out / "surfaces").glob("*.vtp"))) == 3 == len(list((out / "renders").glob("*.png")))
+
+
+def test_bench_surface_sizes_reports_seconds_and_cpu():
+    from ipsph.benchmark.surface_cost import sizes_table, surface_seconds
+    row = surface_seconds(3000, threads=1, repeats=1, log=lambda m: None)
+    assert row["particles"] == 14 ** 3 and row["triangles"] > 0
+    assert row["seconds_median"] > 0 and row["cpu_seconds_median"] > 0
+    assert "2,744" in sizes_table([row], markdown=True)
