@@ -29,8 +29,6 @@ from .model import Role, Scene
 from .neighbours import NeighbourSearch
 from .particles import ParticleState
 
-VOLUME_FACTOR = 0.8  # V = 0.8 d^3 (SPlisHSPlasH): the initial lattice starts under-dense
-
 
 @dataclass
 class StepStats(StepReport):
@@ -84,9 +82,12 @@ class Simulation:
         r = scene.particle_radius
         self.spacing = 2.0 * r
         self.support = 4.0 * r
-        mass = scene.density0 * VOLUME_FACTOR * self.spacing ** 3
+        # every particle carries the water of its lattice cell, rho0 d^3 (method.md section 1)
+        mass = scene.density0 * self.spacing ** 3
         self.state = ParticleState(fluid_x, fluid_v, np.full(len(fluid_x), mass), fluid_ids)
-        self.boundary = Boundary(boundary_x, self.support, scene.density0)
+        from .sampling import rest_lattice
+        self.boundary = Boundary(boundary_x, self.support, scene.density0, rest_lattice(scene, boundary_x),
+                                 self.spacing)
         self.search = NeighbourSearch(self.support, self.boundary)
         self.method = METHODS[scene.method](scene, self.state, self.boundary, self.search)
         self.time = 0.0
