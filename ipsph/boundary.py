@@ -7,6 +7,10 @@ effective mass rho0 * Psi_b, where the volume
 
 is computed once (the walls never move). No method branches on the boundary: a scene
 without walls simply has zero boundary particles.
+
+Given the scene's rest lattice (`sampling.rest_lattice`: the fluid's lattice continued over the
+free space near the walls), the Akinci volumes are then corrected so that fluid at rest reads
+rho0 next to walls too, along edges and in corners included (`fit_volumes`, method.md section 1).
 """
 from __future__ import annotations
 
@@ -32,14 +36,156 @@ def akinci_volumes(xb, nbr, cnt, h, psi):
         psi[b] = 1.0 / s
 
 
-class Boundary:
-    """Boundary particles: positions `x`, Akinci volumes `psi` and masses `m = rho0 * psi`."""
+@njit(parallel=True, cache=True)
+def kernel_rows(xq, xs, nbr, cnt, h, out):
+    """out[i, k] = W(|xq_i - xs_nbr[i, k]|): the rows of a sparse kernel matrix."""
+    for i in prange(xq.shape[0]):
+        for k in range(cnt[i]):
+            j = nbr[i, k]
+            d0 = xq[i, 0] - xs[j, 0]
+            d1 = xq[i, 1] - xs[j, 1]
+            d2 = xq[i, 2] - xs[j, 2]
+            out[i, k] = w(np.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
 
-    def __init__(self, x: np.ndarray, support: float, rho0: float):
+
+@njit(parallel=True, cache=True)
+def _rows_dot(nbr, cnt, a, v, out):
+    """out = A v for the sparse rows (nbr, cnt, a)."""
+    for i in prange(nbr.shape[0]):
+        s = 0.0
+        for k in range(cnt[i]):
+            s += a[i, k] * v[nbr[i, k]]
+        out[i] = s
+
+
+@njit(cache=True)
+def _rows_tdot(nbr, cnt, a, y, out):
+    """out = A^T y (serial scatter: a fixed summation order, so the fit is reproducible)."""
+    out[:] = 0.0
+    for i in range(nbr.shape[0]):
+        for k in range(cnt[i]):
+            out[nbr[i, k]] += a[i, k] * y[i]
+
+
+def radius_lists(xq: np.ndarray, points: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(order, nbr, cnt): for each query i, the indices into points[order] closer than radius."""
+    n = len(points)
+    lo = np.minimum(points.min(axis=0), xq.min(axis=0))
+    hi = np.maximum(points.max(axis=0), xq.max(axis=0))
+    grid = Grid.for_support(lo, hi, radius)
+    cells = np.empty(n, dtype=np.int64)
+    cell_ids(points, grid.origin, grid.inv_cell, grid.dims, cells)
+    order = np.empty(n, dtype=np.int64)
+    start = counting_sort(cells, grid.n_cells, order)
+    xs = np.ascontiguousarray(points[order])
+    same = xq is points
+    k = 64
+    while True:
+        nbr = np.zeros((len(xq), k), dtype=np.int32)
+        cnt = np.zeros(len(xq), dtype=np.int32)
+        most = gather_neighbours(xs if same else xq, xs, start, grid.origin, grid.inv_cell, grid.dims,
+                                 radius, same, False, nbr, cnt)
+        if most <= k:
+            return order, nbr, cnt
+        k = int(most + 16)
+
+
+# Regularisation of the wall-volume fit, relative to the mean diagonal of A^T A: small enough that
+# the rest lattice reads rho0 to ~1e-4 next to walls, large enough that wall particles the lattice
+# barely sees keep their Akinci volume (method.md section 1).
+FIT_REGULARISATION = 1e-3
+FIT_ITERATIONS = 400
+
+
+def fit_volumes(xb: np.ndarray, psi_akinci: np.ndarray, lattice: np.ndarray, spacing: float, h: float
+                ) -> tuple[np.ndarray, dict]:
+    """Wall volumes psi >= 0 with which the rest lattice reads rho0 next to the walls.
+
+    For every lattice point i within H of a wall particle the walls must supply what the lattice
+    lacks there: tau_i = 1 - d^3 sum_j W_ij (j over the lattice, i itself included). psi minimises
+
+        |A psi - tau|^2 + mu |psi - psi_akinci|^2,      A_ib = W(x_i - x_b),
+
+    by conjugate gradients on the normal equations (mu = FIT_REGULARISATION * mean diag A^T A),
+    then clips at zero. Returns psi and a report of the fit (rest densities before and after).
+    """
+    probe_order, fnbr, fcnt = radius_lists(lattice, lattice, h)
+    xs_lat = np.ascontiguousarray(lattice[probe_order])
+    bord, bnbr, bcnt = radius_lists(xs_lat, xb, h)
+    probes = np.flatnonzero(bcnt > 0)
+    report = {"probes": int(len(probes))}
+    if len(probes) == 0:
+        return psi_akinci, report
+    xs_b = np.ascontiguousarray(xb[bord])
+    # fluid part of the rest density at the probes (the self term arrives as W(0) at distance 0)
+    wf = np.zeros(fnbr.shape)
+    kernel_rows(xs_lat, xs_lat, fnbr, fcnt, h, wf)
+    fluid = spacing ** 3 * (wf.sum(axis=1) + w(0.0, h))
+    # the probes were gathered in lattice order; restrict to those near walls
+    nbr, cnt = np.ascontiguousarray(bnbr[probes]), np.ascontiguousarray(bcnt[probes])
+    a = np.zeros(nbr.shape)
+    kernel_rows(np.ascontiguousarray(xs_lat[probes]), xs_b, nbr, cnt, h, a)
+    tau = 1.0 - fluid[probes]
+    p0 = np.ascontiguousarray(psi_akinci[bord])
+    diag = np.zeros(len(xb))
+    _rows_tdot(nbr, cnt, a * a, np.ones(len(probes)), diag)
+    mu = FIT_REGULARISATION * float(diag[diag > 0].mean())
+    ap = np.empty(len(probes))
+    _rows_dot(nbr, cnt, a, p0, ap)
+    report["rest_density_akinci"] = (float((fluid[probes] + ap).min()), float((fluid[probes] + ap).max()))
+
+    def normal(v, out):  # (A^T A + mu) v
+        _rows_dot(nbr, cnt, a, v, ap)
+        _rows_tdot(nbr, cnt, a, ap, out)
+        out += mu * v
+
+    # solve for the correction dpsi = psi - psi_akinci: (A^T A + mu) dpsi = A^T (tau - A p0)
+    _rows_dot(nbr, cnt, a, p0, ap)
+    rhs = np.empty(len(xb))
+    _rows_tdot(nbr, cnt, a, tau - ap, rhs)
+    x = np.zeros(len(xb))
+    res = rhs.copy()
+    dirn = res.copy()
+    q = np.empty(len(xb))
+    rr = float(res @ res)
+    rr0 = rr
+    it = 0
+    while it < FIT_ITERATIONS and rr > 1e-24 * rr0:
+        normal(dirn, q)
+        step = rr / float(dirn @ q)
+        x += step * dirn
+        res -= step * q
+        rr_new = float(res @ res)
+        dirn = res + (rr_new / rr) * dirn
+        rr = rr_new
+        it += 1
+    psi_sorted = np.maximum(p0 + x, 0.0)
+    _rows_dot(nbr, cnt, a, psi_sorted, ap)
+    rest = fluid[probes] + ap
+    report.update(iterations=it, rest_density=(float(rest.min()), float(rest.max())),
+                  volume_ratio=(float((psi_sorted / np.maximum(p0, 1e-300)).min()),
+                                float((psi_sorted / np.maximum(p0, 1e-300)).max())))
+    psi = np.empty(len(xb))
+    psi[bord] = psi_sorted
+    return psi, report
+
+
+class Boundary:
+    """Boundary particles: positions `x`, volumes `psi` and masses `m = rho0 * psi`.
+
+    psi are Akinci's volumes, fitted to `rest_lattice` when one is given (`fit_volumes`).
+    """
+
+    def __init__(self, x: np.ndarray, support: float, rho0: float, rest_lattice: np.ndarray | None = None,
+                 spacing: float | None = None):
         self.x = np.ascontiguousarray(x, dtype=np.float64).reshape(-1, 3)
         self.h = float(support)
         self.rho0 = float(rho0)
         self.psi = self._volumes()
+        self.fit_report: dict = {}
+        if rest_lattice is not None and len(rest_lattice) and self.n:
+            self.psi, self.fit_report = fit_volumes(self.x, self.psi, rest_lattice,
+                                                    self.h / 2.0 if spacing is None else spacing, self.h)
         self.m = self.rho0 * self.psi
 
     @property
@@ -51,21 +197,8 @@ class Boundary:
         psi = np.zeros(n)
         if n == 0:
             return psi
-        grid = Grid.for_support(self.x.min(axis=0), self.x.max(axis=0), self.h)
-        cells = np.empty(n, dtype=np.int64)
-        cell_ids(self.x, grid.origin, grid.inv_cell, grid.dims, cells)
-        order = np.empty(n, dtype=np.int64)
-        start = counting_sort(cells, grid.n_cells, order)
+        order, nbr, cnt = radius_lists(self.x, self.x, self.h)
         xs = np.ascontiguousarray(self.x[order])
-        k = 64
-        while True:
-            nbr = np.zeros((n, k), dtype=np.int32)
-            cnt = np.zeros(n, dtype=np.int32)
-            most = gather_neighbours(xs, xs, start, grid.origin, grid.inv_cell, grid.dims, self.h, True, False,
-                                     nbr, cnt)
-            if most <= k:
-                break
-            k = int(most + 16)
         psi_sorted = np.zeros(n)
         akinci_volumes(xs, nbr, cnt, self.h, psi_sorted)
         psi[order] = psi_sorted

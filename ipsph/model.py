@@ -85,6 +85,8 @@ SolverConfig = _section("SolverConfig", "solver", "[solver] and its per-method s
                         {"divergence": DivergenceConfig, "dfsph": DFSPHConfig, "pf": PFConfig, "ipsph": IPSPHConfig})
 OutputConfig = _section("OutputConfig", "output", "[output]: what is written, where, how often.")
 RenderConfig = _section("RenderConfig", "render", "[render]: the offscreen renders.")
+SurfaceConfig = _section("SurfaceConfig", "surface", "[surface]: surface reconstruction (splashsurf through "
+                         "ipsph.surface); lengths in multiples of r.")
 
 
 @dataclass(frozen=True)
@@ -103,5 +105,6 @@ class Scene:
     boundaries: tuple[BoundarySpec, ...] = ()
     output: OutputConfig = OutputConfig()
     render: RenderConfig = RenderConfig()
+    surface: SurfaceConfig = SurfaceConfig()
     source: Path | None = None          # the scene file, if any
     warnings: tuple[str, ...] = field(default=(), compare=False)

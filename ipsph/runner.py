@@ -42,6 +42,7 @@ class RunOptions:
     threads: int | None = None
     max_particles: int | None = None
     progress: bool | None = None   # None: only on a TTY
+    surface: bool | None = None    # None: the scene's output.surface (or render.mode = "surface")
 
 
 class StopOnSignal:
@@ -76,15 +77,21 @@ def run(scene: Scene, opts: RunOptions) -> int:
         check_render_size(scene)
         from .render.worker import BackgroundRenderer
         renderer = BackgroundRenderer()
+    surfacer = None
+    wants = scene.output.surface or (scene.render.enabled and opts.render and scene.render.mode == "surface")
+    if wants if opts.surface is None else opts.surface:  # start it now: it imports splashsurf while we sample
+        from .surface_worker import BackgroundSurfacer
+        surfacer = BackgroundSurfacer()
     try:
-        return _run(scene, opts, resume, renderer)
+        return _run(scene, opts, resume, renderer, surfacer)
     except BaseException:
-        if renderer is not None:
-            renderer.terminate()
+        for worker in (renderer, surfacer):
+            if worker is not None:
+                worker.terminate()
         raise
 
 
-def _run(scene: Scene, opts: RunOptions, resume, renderer) -> int:
+def _run(scene: Scene, opts: RunOptions, resume, renderer, surfacer=None) -> int:
     from .scene import scene_to_dict
     out = opts.out_dir
     import numba
@@ -125,7 +132,7 @@ def _run(scene: Scene, opts: RunOptions, resume, renderer) -> int:
         info.update(_previous_info(out))
         info["resumed"] = info.get("resumed", []) + [{"time": resume.time, "step": resume.steps, "at": now}]
     progress = sys.stderr.isatty() if opts.progress is None else opts.progress
-    folder = RunFolder(out, sim, scene, info, renderer, progress, resume)
+    folder = RunFolder(out, sim, scene, info, renderer, progress, resume, surfacer)
     info["setup_seconds"] = time.perf_counter() - t_setup
     _write_info(out, info, sim, folder)
     code, status = EXIT_OK, "completed"

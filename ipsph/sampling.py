@@ -157,6 +157,47 @@ def _sample_fluid(spec: model.FluidSpec, r: float) -> np.ndarray:
     return np.ascontiguousarray(lattice[inside])
 
 
+def rest_lattice(scene: model.Scene, boundary_x: np.ndarray) -> np.ndarray:
+    """The first fluid body's lattice continued over the free space within 2H = 8r of the walls.
+
+    Lattice points (spacing d, the first fluid's origin and rotation) that a fluid filling every
+    container would keep under the same rules as the real fluid (`sample_scene`: at least d from
+    every wall particle, inside no obstacle, inside a container when there are any), restricted to
+    those within 2H of a wall particle. `boundary.Boundary` fits the wall volumes to it so that
+    walls and fluid at rest together read rho0 (method.md section 1). Empty without fluid or walls.
+    """
+    r = _check_radius(scene.particle_radius)
+    d, h = 2.0 * r, 8.0 * r
+    xb = np.ascontiguousarray(np.asarray(boundary_x, dtype=np.float64).reshape(-1, 3))
+    if not scene.fluids or len(xb) == 0:
+        return np.empty((0, 3))
+    first = fluid_positions(scene.fluids[0], r)
+    if len(first) == 0:
+        return np.empty((0, 3))
+    rigid = _rigid(scene.fluids[0].transform)
+    anchor = first[0]
+    rot = meshes.transform_points(np.eye(3), rigid) - meshes.transform_points(np.zeros((1, 3)), rigid)
+    local = (xb - anchor) @ rot.T / d            # wall particles in lattice units (rot rows: axes)
+    lo = np.floor(local.min(axis=0) - h / d).astype(np.int64)
+    hi = np.ceil(local.max(axis=0) + h / d).astype(np.int64)
+    kept = []
+    ys, zs = np.arange(lo[1], hi[1] + 1), np.arange(lo[2], hi[2] + 1)
+    gy, gz = np.meshgrid(ys, zs, indexing="ij")
+    plane = np.stack([gy.ravel(), gz.ravel()], axis=1).astype(np.float64)
+    chunk = max(1, 2_000_000 // max(len(plane), 1))
+    for x0 in range(lo[0], hi[0] + 1, chunk):
+        xs = np.arange(x0, min(x0 + chunk, hi[0] + 1), dtype=np.float64)
+        ijk = np.concatenate([np.column_stack([np.full(len(plane), xi), plane]) for xi in xs])
+        pts = np.ascontiguousarray(anchor + d * (ijk @ rot))
+        near = nearest_distance(pts, xb, h) < h
+        pts = pts[near]
+        if len(pts) == 0:
+            continue
+        ok, _ = remove_overlaps(pts, xb, default_overlap_distance(r), boundaries=scene.boundaries, radius=r)
+        kept.append(pts[ok])
+    return np.ascontiguousarray(np.concatenate(kept)) if kept else np.empty((0, 3))
+
+
 def fluid_positions(spec: model.FluidSpec, radius: float, *, cache: bool = True) -> np.ndarray:
     """(N,3) float64 fluid particle positions for a box or mesh fluid body (module docstring)."""
     r = _check_radius(radius)

@@ -28,8 +28,6 @@ from .methods.base import StepReport
 from .model import Role, Scene
 from .particles import ParticleState
 
-VOLUME_FACTOR = 0.8  # V = 0.8 d^3 (SPlisHSPlasH): the initial lattice starts under-dense
-
 
 @dataclass
 class StepStats(StepReport):
@@ -89,9 +87,13 @@ class Simulation:
         r = scene.particle_radius
         self.spacing = 2.0 * r
         self.support = 4.0 * r
-        mass = scene.density0 * VOLUME_FACTOR * self.spacing ** 3  # one fluid mass: the passes take a scalar
+        # every particle carries the water of its lattice cell, rho0 d^3 (method.md section 1); one
+        # fluid mass: the passes take it as a scalar
+        mass = scene.density0 * self.spacing ** 3
         self.state = ParticleState(fluid_x, fluid_v, np.full(len(fluid_x), mass), fluid_ids, self.be)
-        self.boundary = Boundary(boundary_x, self.support, scene.density0)
+        from .sampling import rest_lattice
+        self.boundary = Boundary(boundary_x, self.support, scene.density0, rest_lattice(scene, boundary_x),
+                                 self.spacing)
         self.search = self.be.neighbour_search(self.support, self.boundary)
         self.method = METHODS[scene.method](scene, self.state, self.boundary, self.search, self.be, mass)
         self.time = 0.0

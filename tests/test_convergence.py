@@ -9,7 +9,6 @@ the error ratio at dt and dt/2.
 """
 import math
 
-import numpy as np
 import pytest
 
 from ipsph.scene import scene_from_dict

@@ -41,7 +41,7 @@ def splashing():
 
 
 def _filled(sim, by):
-    m, st, d, fl, nl, b = sim.method, sim.state, sim.method.data.dens, sim.method.fluid, sim.search.lists, sim.boundary
+    st, d, fl, nl, b = sim.state, sim.method.data.dens, sim.method.fluid, sim.search.lists, sim.boundary
     nf, cf = nl.fluid, nl.fluid_count
     n, k = nf.shape
     cache = np.full((n, 3, k), np.nan)

@@ -61,7 +61,8 @@ def test_every_settable_model_field_has_a_scene_key():
                 yield prefix + f.name
 
     for prefix, cls in (("time_step.", model.TimeStepConfig), ("solver.", model.SolverConfig),
-                        ("output.", model.OutputConfig), ("render.", model.RenderConfig)):
+                        ("output.", model.OutputConfig), ("render.", model.RenderConfig),
+                        ("surface.", model.SurfaceConfig)):
         for leaf in leaves(cls, prefix):
             assert leaf in targets, f"{leaf} has no scene key"
 

@@ -36,7 +36,7 @@ def lattice_block(n1, support_in_d):
     nf = np.zeros((len(x), cf.max()), np.int32)
     for i in range(len(x)):
         nf[i, :cf[i]] = np.nonzero(near[i])[0]
-    mf = RHO0 * 0.8 * D ** 3
+    mf = RHO0 * D ** 3
     n = len(x)
     rho, alpha, lam, err, gb = np.empty(n), np.empty(n), np.zeros(n), np.empty(n), np.empty((n, 3))
     no_walls = np.zeros((n, 1), np.int32), np.zeros(n, np.int32)

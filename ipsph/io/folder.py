@@ -14,7 +14,7 @@ import numpy as np
 from .. import checkpoint as ckpt
 from ..errors import OutputError
 from . import (BOUNDARY_SURFACE, BOUNDARY_VTU, FRAMES_DIR, PLOTS_DIR, RENDERS_DIR, RUN_JSON, RUN_PVD, STATS_CSV,
-               frame_file, provenance, pvd, stats, vtu)
+               SURFACES_DIR, frame_file, provenance, pvd, stats, vtu)
 
 
 def check_output_folder(out: Path, overwrite: bool, resume: bool) -> None:
@@ -37,7 +37,7 @@ def check_output_folder(out: Path, overwrite: bool, resume: bool) -> None:
         raise OutputError(f"output folder {out} (resolved {out.resolve()}) is not writable: "
                           f"{exc.strerror or exc}") from exc
     if overwrite and not resume:
-        for name in (FRAMES_DIR, RENDERS_DIR, PLOTS_DIR):
+        for name in (FRAMES_DIR, RENDERS_DIR, PLOTS_DIR, SURFACES_DIR):
             shutil.rmtree(out / name, ignore_errors=True)
         for name in (RUN_PVD, BOUNDARY_VTU, BOUNDARY_SURFACE, STATS_CSV,
                      RUN_JSON, "checkpoint.npz"):
@@ -52,7 +52,7 @@ class RunFolder:
     """
 
     def __init__(self, out: Path, sim, scene, info: dict, renderer, progress: bool,
-                 resume: ckpt.Checkpoint | None = None):
+                 resume: ckpt.Checkpoint | None = None, surfacer=None):
         self.out, self.sim, self.scene, self.info = out, sim, scene, info
         self.fields = scene.output.fields
         self.checkpoint_interval = scene.output.checkpoint_interval
@@ -80,6 +80,12 @@ class RunFolder:
                                                   truncate_after_step=resume.steps)
         self.surface = self._write_surface()
         self.renderer = self._configure_renderer(renderer) if renderer is not None else None
+        self.surfacer = surfacer  # surfaces/*.vtp beside the solver (ipsph.surface_worker)
+        if surfacer is not None:
+            from ..surface import container_bounds
+            clip = container_bounds(scene.boundaries)
+            surfacer.configure(out, scene.particle_radius, scene.density0, scene.surface, clip)
+            self.info["surface"] = {"enabled": True, **_asdict(scene.surface), "clip_bounds": clip}
         self.progress = progress
         self.t_start = time.perf_counter()
         self.steps_start = sim.steps
@@ -90,12 +96,13 @@ class RunFolder:
     def _delete_frames_from(self, first: int) -> None:
         """Remove frame files (and their renders) numbered `first` and later: a resumed run rewrites them.
         Temporary files a killed run left behind go too (nothing references them)."""
-        for folder, pattern in ((FRAMES_DIR, "fluid_*.vtu"), (RENDERS_DIR, "frame_*.png")):
+        for folder, pattern in ((FRAMES_DIR, "fluid_*.vtu"), (RENDERS_DIR, "frame_*.png"),
+                                (SURFACES_DIR, "surface_*.*")):
             for f in (self.out / folder).glob(pattern):
                 index = f.stem.rsplit("_", 1)[-1]
                 if index.isdigit() and int(index) >= first:
                     f.unlink(missing_ok=True)
-        for folder in (self.out, self.out / FRAMES_DIR, self.out / RENDERS_DIR):
+        for folder in (self.out, self.out / FRAMES_DIR, self.out / RENDERS_DIR, self.out / SURFACES_DIR):
             for f in folder.glob(".*.tmp"):
                 f.unlink(missing_ok=True)
 
@@ -147,10 +154,13 @@ class RunFolder:
                          "mass": lambda: sim.masses.astype(np.float32),
                          "id": lambda: sim.ids}[f]()
         vtu.write_particles(self.out / name, sim.positions.astype(np.float32), fields, sim.time)
+        self._surfaces_done()  # listed by the same .pvd rewrite as the frame
         self.pvd.add(sim.time, name)
         t1 = time.perf_counter()
         self.write_seconds += t1 - t0
-        if self.renderer is not None:
+        if self.surfacer is not None:  # after the frame is on disk; never waits for the surface process
+            self.surfacer.submit(self.frames, sim.time, sim.positions, sim.velocities, _warn)
+        if self.renderer is not None and self.scene.render.mode != "surface":
             png = self.out / RENDERS_DIR / f"frame_{self.frames:06d}.png"
             if not self.renderer.submit(sim.positions, sim.velocities, png, sim.time):
                 self._render_failed()
@@ -174,6 +184,25 @@ class RunFolder:
                              f"density error {100 * s.density_error_mean:.3f} %  {rate:6.1f} steps/s ")
             sys.stderr.flush()
 
+    def _surfaces_done(self) -> bool:
+        """List the surfaces the surface process finished in run.pvd (and render them in surface mode)."""
+        done = self.surfacer.collect(_warn) if self.surfacer is not None else []
+        for index, t, name in done:
+            self.pvd.add_surface(t, name)
+            if self.renderer is not None and self.scene.render.mode == "surface":
+                png = self.out / RENDERS_DIR / f"frame_{index:06d}.png"
+                if not self.renderer.submit_surface(self.out / name, png, t):
+                    self._render_failed()
+        return bool(done)
+
+    def _close_surfaces(self) -> None:
+        """Wait for the last surfaces (Ctrl-C skips them), list them, say which frames have none."""
+        self.surfacer.finish(self.out, self.frames, _warn)
+        if self._surfaces_done():
+            self.pvd.write()
+        self.info["surface"] = {**self.info.get("surface", {}), **self.surfacer.summary()}
+        self.surfacer = None
+
     def _render_failed(self) -> None:
         why = self.renderer.error or "the render process stopped"
         if self.renderer.ready:
@@ -188,6 +217,8 @@ class RunFolder:
         if self.progress:
             sys.stderr.write("\n")
         self.stats.close()
+        if self.surfacer is not None:  # first: in surface mode its last surfaces still go to the renderer
+            self._close_surfaces()
         if self.renderer is not None:
             t0 = time.perf_counter()
             try:
@@ -205,6 +236,10 @@ class RunFolder:
             self.render_seconds += time.perf_counter() - t0
             if self.renderer.error:
                 self._render_failed()
+
+
+def _warn(msg: str) -> None:
+    print(f"\n{msg}" if msg.startswith("ipsph: warning") else msg, file=sys.stderr)
 
 
 def _asdict(obj):

@@ -13,7 +13,7 @@ from ..model import RenderConfig
 from .camera import camera_for_view
 from .gl import _use_egl
 from .png import save_png
-from .style import (BACKGROUND, ENGINES, SURFACE_COLOUR, SURFACE_OPACITY, TIME_LABEL_POS, VIEW_ANGLE_DEG,
+from .style import (BACKGROUND, ENGINES, SPEED_COLOURS, SURFACE_COLOUR, SURFACE_OPACITY, TIME_LABEL_POS, VIEW_ANGLE_DEG,
                     _rgb, _ui_scale, speed_lut_rgb)
 from .text import _draw_text, _scalar_bar, _set_font
 
@@ -80,6 +80,8 @@ class FrameRenderer:
         for i, (r, g, b) in enumerate(self._lut_rgb):
             lut.SetTableValue(i, r, g, b, 1.0)
         lut.SetTableRange(lo, hi)
+        self._lut = lut
+        self._mesh_actor = None  # render.mode = "surface": the fluid's surface mesh (surface_image)
         self._poly = vtkPolyData()
         mapper = vtkOpenGLPointGaussianMapper()
         mapper.SetInputData(self._poly)
@@ -191,6 +193,51 @@ class FrameRenderer:
                  else np.zeros(len(pts)))
         label = "" if time is None else f"t = {time:.3f} s"
         return self._splat_frame(pts, speed, label) if self.engine == "splat" else self._vtk_frame(pts, speed, label)
+
+    def surface_image(self, mesh, *, time: float | None = None) -> np.ndarray:
+        """One frame of the fluid's surface mesh (render.mode = "surface"; vtkPolyData with "speed" on the
+        vertices, as ipsph.surface writes it, or None for a frame without one) drawn through VTK:
+        smooth-shaded, coloured by speed over the particle frames' colour map and range, behind the same
+        translucent walls, colour bar, title and camera."""
+        from vtkmodules.vtkCommonDataModel import vtkPolyData
+        from vtkmodules.vtkRenderingCore import vtkActor, vtkPolyDataMapper
+
+        if self._mesh_actor is None:
+            mapper = vtkPolyDataMapper()
+            mapper.SetLookupTable(self._lut)
+            mapper.SetScalarRange(*self.speed_range)
+            mapper.UseLookupTableScalarRangeOff()
+            mapper.InterpolateScalarsBeforeMappingOn()  # colours follow the speed across a triangle
+            mapper.SetScalarModeToUsePointFieldData()
+            mapper.SelectColorArray("speed")
+            actor = vtkActor()
+            actor.SetMapper(mapper)
+            prop = actor.GetProperty()
+            prop.SetInterpolationToGouraud()  # with the mesh's smoothed normals
+            prop.SetColor(*_rgb(SPEED_COLOURS[2]))
+            prop.SetAmbient(0.08)
+            prop.SetDiffuse(0.85)
+            prop.SetSpecular(0.35)        # a wet highlight
+            prop.SetSpecularPower(40.0)
+            self.renderer.AddActor(actor)
+            self._mesh_actor = actor
+        mesh = mesh if mesh is not None else vtkPolyData()
+        mapper = self._mesh_actor.GetMapper()
+        mapper.SetInputData(mesh)
+        mapper.SetScalarVisibility(mesh.GetPointData().GetArray("speed") is not None)
+        self._actor.SetVisibility(False)
+        self._mesh_actor.SetVisibility(True)
+        self._time_text.SetInput("" if time is None else f"t = {time:.3f} s")
+        try:
+            return self._grab()
+        finally:  # the particle engines' state as it was
+            self._mesh_actor.SetVisibility(False)
+            self._actor.SetVisibility(True)
+            self._time_text.SetInput("")
+
+    def render_surface(self, mesh, out_png, *, time: float | None = None) -> Path:
+        """Render one surface frame to `out_png`; return its path."""
+        return save_png(self.surface_image(mesh, time=time), out_png)
 
     def _vtk_frame(self, pts: np.ndarray, speed: np.ndarray, label: str) -> np.ndarray:
         """The whole frame through VTK (sprites by vtkPointGaussianMapper): the reference the splat

@@ -9,6 +9,7 @@ import numpy as np
 
 from ..errors import ConfigError, OutputError
 from ..model import RenderConfig
+from ..params import RENDER_MODES
 from .frame import FrameRenderer
 
 
@@ -70,12 +71,14 @@ def _speed_range_for(out: Path, run: dict, frames: list[tuple[float, str]], give
 
 def render_output(out_dir, *, speed_range=None, config_overrides: dict | None = None,
                   video: str | None = None, fps: float | None = None,
-                  frames: slice | None = None, progress=None) -> list[Path]:
+                  frames: slice | None = None, progress=None, mode: str | None = None) -> list[Path]:
     """Render every frame of a finished or still-running output folder to OUT/renders/*.png.
 
     Reads run.json (render settings, radius, bounds), run.pvd (frames written so far) and
     boundary_surface.vtp. Colour range: `speed_range`, else max of stats.csv `max_speed`, else
     the frames' data. `video` = "mp4" | "gif" also writes OUT/video.<ext>. Returns written paths.
+    `mode` = "particles" | "surface" (default: the run's render.mode): "surface" renders
+    OUT/surfaces/surface_NNNNNN.vtp, reconstructing first the frames that have none (`ipsph surface`).
     """
     from ..io import BOUNDARY_SURFACE, RENDERS_DIR, RUN_JSON, RUN_PVD
     from ..io.provenance import read_run_json
@@ -90,6 +93,12 @@ def render_output(out_dir, *, speed_range=None, config_overrides: dict | None = 
         raise ConfigError(f"video = {video!r} is not a video format; allowed: mp4, gif")
     run = read_run_json(out / RUN_JSON) if (out / RUN_JSON).is_file() else {}
     config = _render_config(run, config_overrides)
+    mode = mode or config.mode
+    if mode not in RENDER_MODES:
+        raise ConfigError(f"render mode {mode!r} is not one of {', '.join(RENDER_MODES)}")
+    if mode == "surface":
+        from ..surface import surface_output
+        surface_output(out)  # the frames without a surface yet (one warning line per failed frame)
     series = PvdSeries.load(out / RUN_PVD)
     todo = list(enumerate(series.frames))
     if frames is not None:
@@ -119,9 +128,12 @@ def render_output(out_dir, *, speed_range=None, config_overrides: dict | None = 
     pngs: list[Path] = []
     with FrameRenderer(config, bounds, radius, rng, surface, title=title) as r:
         for k, (i, (t, f)) in enumerate(todo):
-            pts, fields, _ = read_particles(out / f)
             png = out / RENDERS_DIR / f"frame_{_frame_index(f, i):06d}.png"
-            r.render(pts, fields.get("velocity"), png, time=t)
+            if mode == "surface":
+                r.render_surface(read_surface(out / series.surfaces[t]) if t in series.surfaces else None, png, time=t)
+            else:
+                pts, fields, _ = read_particles(out / f)
+                r.render(pts, fields.get("velocity"), png, time=t)
             pngs.append(png)
             if progress is not None:
                 progress(k + 1, len(todo))

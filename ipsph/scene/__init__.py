@@ -21,16 +21,16 @@ from pathlib import Path
 from typing import Iterable
 
 from ..errors import ConfigError
-from ..model import Scene
+from ..model import Scene, SurfaceConfig
 from ..params import OUTPUT_FIELDS, PARAM_BY_PATH, PARAMS, RENDER_VIEWS, Param
 from .overrides import apply_overrides
 from .reference import key_help, reference_markdown
 from .serialise import scene_to_dict
-from .validate import _build_scene, _read_toml, lattice_counts
+from .validate import _build_scene, _read_toml, lattice_counts, surface_values
 
 __all__ = ["Param", "PARAMS", "PARAM_BY_PATH", "OUTPUT_FIELDS", "RENDER_VIEWS", "load_scene", "scene_from_dict",
            "apply_overrides", "scene_to_dict", "default_scene_path", "reference_markdown", "key_help",
-           "lattice_counts"]
+           "lattice_counts", "surface_config"]
 
 
 def default_scene_path() -> Path:
@@ -77,3 +77,13 @@ def scene_from_dict(data: dict, base_dir: Path | None = None, name: str | None =
     where = str(source) if source is not None else "scene"
     return _build_scene(data, Path(base_dir) if base_dir is not None else Path.cwd(), name,
                         source, where)
+
+
+def surface_config(stored: dict | None, overrides: Iterable[str] = (), where: str = "surface") -> SurfaceConfig:
+    """The [surface] settings of a stored scene dict (run.json's `scene`), with `--set surface.KEY=VALUE`
+    overrides, validated by PARAMS alone: no meshes are resolved (`ipsph surface`, `ipsph render`)."""
+    data = apply_overrides({"surface": dict((stored or {}).get("surface") or {})}, overrides)
+    other = sorted(set(data) - {"surface"})
+    if other:
+        raise ConfigError(f"{where}: only surface.* keys can be set here, not {other[0]}")
+    return surface_values(data["surface"], where)

@@ -18,7 +18,7 @@ from typing import Any, Iterable
 
 from ..errors import ConfigError, read_text
 from ..model import (BoundarySpec, FluidSpec, Method, OutputConfig, RenderConfig, Role, Scene,
-                     SolverConfig, TimeStepConfig, Transform)
+                     SolverConfig, SurfaceConfig, TimeStepConfig, Transform)
 from ..params import AUTO, PARAM_BY_PATH, PARAMS, RENAMED, Param, default
 from .text import _allowed, _fmt, _fmt_vec, _show, _tname
 
@@ -133,7 +133,7 @@ def _build_scene(data: dict, base_dir: Path, name: str | None, source: Path | No
         kw["output"]["folder"] = Path(kw["output"]["folder"]).expanduser()
     sections = {k: _construct(t, kw.pop(k, {})) for k, t in
                 (("time_step", TimeStepConfig), ("solver", SolverConfig), ("output", OutputConfig),
-                 ("render", RenderConfig))}
+                 ("render", RenderConfig), ("surface", SurfaceConfig))}
     r = kw.get("particle_radius", default("simulation.particle_radius"))
     _check_sections(ctx, sections["time_step"], sections["solver"], sections["render"], r)
 
@@ -365,3 +365,10 @@ def _resolve_mesh(ctx: _Ctx, key: str, given: str, base_dir: Path) -> Path:
         raise ctx.fail(key, f"{what}: {given!r} (resolved: {resolved}; relative paths are "
                        f"relative to the scene file's folder {base_dir})")
     return resolved
+
+
+def surface_values(data: dict, where: str) -> SurfaceConfig:
+    """A [surface] table alone, validated by PARAMS (no meshes resolved)."""
+    values: dict[str, Any] = {}
+    _walk(_Ctx(where), data, _ROOT["surface"], "surface", values)
+    return SurfaceConfig(**{PARAM_BY_PATH[k].target.split(".", 1)[1]: v for k, v in values.items()})
