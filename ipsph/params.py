@@ -81,8 +81,9 @@ class Param:
 _Z3 = (0.0, 0.0, 0.0)
 
 
-def _P(path, kind, default, unit, doc, target="", **kw) -> Param:
-    return Param(path, kind, default, unit, doc, target, **kw)
+def _P(path, kind, default, unit, doc, target=None, **kw) -> Param:
+    """One parameter; `target` (where the value lands in the model) defaults to the key path."""
+    return Param(path, kind, default, unit, doc, path if target is None else target, **kw)
 
 
 def _limits(table: str, what: str, lo: int, hi: int, solve: str, *, stem: str = "",
@@ -110,9 +111,9 @@ def _transform(kind: str) -> tuple[Param, ...]:
 PARAMS: tuple[Param, ...] = (
     # -- top level ------------------------------------------------------------------------------
     _P("name", "str", None, "", "Scene name used in outputs and logs. Default: the scene file's "
-       "name without extension.", "name"),
+       "name without extension."),
     _P("source", "str", None, "", "The scene file this scene was resolved from; written by "
-       "ipsph into saved scenes (run.json), not normally set by hand.", "source", optional=True),
+       "ipsph into saved scenes (run.json), not normally set by hand.", optional=True),
     # -- [simulation] ---------------------------------------------------------------------------
     _P("simulation.method", "choice", "ipsph", "", "Pressure solver: ipsph (the paper's "
        "method), pf (Projective Fluids) or dfsph (Divergence-Free SPH).", "method",
@@ -134,109 +135,99 @@ PARAMS: tuple[Param, ...] = (
        "standard_viscosity", lo=0.0, hi=10.0),
     # -- [time_step] ----------------------------------------------------------------------------
     _P("time_step.cfl_factor", "float", 1.0, "", "CFL factor lambda in "
-       "dt = lambda * 0.4 * d / max|v|.", "time_step.cfl_factor", lo=0.0, hi=2.5, lo_open=True),
+       "dt = lambda * 0.4 * d / max|v|.", lo=0.0, hi=2.5, lo_open=True),
     _P("time_step.dt_min", "float", 1e-4, "s", "Smallest time step; steps the CFL rule would "
-       "make shorter are counted and reported.", "time_step.dt_min", lo=0.0, hi=1.0,
+       "make shorter are counted and reported.", lo=0.0, hi=1.0,
        lo_open=True),
-    _P("time_step.dt_max", "float", None, "s", "Largest time step. auto: 5 ms * r / 0.025 m.",
-       "time_step.dt_max", lo=0.0, hi=1.0, lo_open=True, optional=True),
+    _P("time_step.dt_max", "float", None, "s", "Largest time step. auto: 5 ms * r / 0.025 m.", lo=0.0, hi=1.0, lo_open=True, optional=True),
     _P("time_step.dt_initial", "float", None, "s", "First time step. auto: the CFL value of the "
-       "initial velocities.", "time_step.dt_initial", lo=0.0, hi=1.0, lo_open=True,
+       "initial velocities.", lo=0.0, hi=1.0, lo_open=True,
        optional=True),
     # -- [solver] -------------------------------------------------------------------------------
     _P("solver.pair_cache_mb", "float", 64.0, "MiB", "Memory the pressure solves (DFSPH's, IPSPH's "
        "divergence solve) may use to keep each fluid pair's kernel gradient instead of evaluating "
        "it in every iteration: 24 bytes per neighbour-list slot, about 1.5 KB per particle. Over it "
        "(about 40k fluid particles), or at 0, they evaluate the kernel again: the same results up "
-       "to the order of floating-point additions.",
-       "solver.pair_cache_mb", lo=0.0, hi=1e6),
+       "to the order of floating-point additions.", lo=0.0, hi=1e6),
     # -- [solver.divergence] ---------------------------------------------------------------------
     _P("solver.divergence.enabled", "bool", True, "", "Run the divergence solve (DFSPH's, and "
-       "IPSPH's Algorithm 1; false turns both off, for experiments).", "solver.divergence.enabled"),
+       "IPSPH's Algorithm 1; false turns both off, for experiments)."),
     _P("solver.divergence.error_pct", "float", 0.1, "%", "Divergence solve (DFSPH and IPSPH): "
-       "stop when mean Drho/Dt <= this * rho0 / dt.", "solver.divergence.error_pct",
+       "stop when mean Drho/Dt <= this * rho0 / dt.",
        lo=0.0, hi=100.0, lo_open=True),
     *_limits("solver.divergence", "iterations", 1, 100, "Divergence solve"),
     # -- [solver.dfsph] -------------------------------------------------------------------------
     _P("solver.dfsph.density_error_pct", "float", 0.01, "%", "DFSPH density solve: stop when "
-       "the mean density error is below this.", "solver.dfsph.density_error_pct", lo=0.0, hi=100.0,
+       "the mean density error is below this.", lo=0.0, hi=100.0,
        lo_open=True),
     *_limits("solver.dfsph", "iterations", 2, 100, "DFSPH density solve", stem="density_"),
     # -- [solver.pf] ----------------------------------------------------------------------------
     _P("solver.pf.stiffness", "float", 50_000.0, "", "Projective Fluids constraint stiffness "
-       "k_s (PF and IPSPH).", "solver.pf.stiffness", lo=0.0, hi=1e12, lo_open=True),
+       "k_s (PF and IPSPH).", lo=0.0, hi=1e12, lo_open=True),
     _P("solver.pf.passes", "int", 3, "", "Local/global passes per step of plain PF "
-       "(SPlisHSPlasH runs 3).", "solver.pf.passes", lo=1, hi=10_000),
+       "(SPlisHSPlasH runs 3).", lo=1, hi=10_000),
     # -- [solver.ipsph] -------------------------------------------------------------------------
     _P("solver.ipsph.density_error_pct", "float", 0.05, "%", "IPSPH average-density loop: stop "
-       "when mean max(rho/rho0 - 1, 0) is below this.", "solver.ipsph.density_error_pct",
+       "when mean max(rho/rho0 - 1, 0) is below this.",
        lo=0.0, hi=100.0, lo_open=True),
     *_limits("solver.ipsph", "passes", 2, 100, "IPSPH: PF passes per step", least=1),
     _P("solver.ipsph.warm_start", "float", 0.8, "", "IPSPH: fraction of the last step's PF "
-       "multipliers to start from (0 = off).", "solver.ipsph.warm_start", lo=0.0, hi=1.0),
+       "multipliers to start from (0 = off).", lo=0.0, hi=1.0),
     # -- [output] -------------------------------------------------------------------------------
     _P("output.folder", "path", Path("out"), "", "Output folder; a relative path resolves "
-       "against the current working directory when the run starts.", "output.folder"),
-    _P("output.fps", "float", 25.0, "1/s", "Frames written per simulated second.",
-       "output.fps", lo=0.0, hi=1e4, lo_open=True),
+       "against the current working directory when the run starts."),
+    _P("output.fps", "float", 25.0, "1/s", "Frames written per simulated second.", lo=0.0, hi=1e4, lo_open=True),
     _P("output.every_step", "bool", False, "", "Write a frame after every time step instead "
-       "of at fps.", "output.every_step"),
+       "of at fps."),
     _P("output.fields", "fields", ("velocity", "density", "pressure", "mass", "id"), "",
-       "Per-particle arrays written to each frame (positions always are).", "output.fields",
+       "Per-particle arrays written to each frame (positions always are).",
        choices=OUTPUT_FIELDS),
     _P("output.checkpoint_interval", "float", None, "s", "Simulated seconds between "
-       "checkpoints. auto: no checkpoints.", "output.checkpoint_interval", lo=0.0, hi=1e6,
+       "checkpoints. auto: no checkpoints.", lo=0.0, hi=1e6,
        lo_open=True, optional=True),
     _P("output.surface", "bool", False, "", "Also write the fluid's surface mesh of every frame, "
        "surfaces/surface_NNNNNN.vtp (triangles, normals, velocity and speed on the vertices), "
        "listed in run.pvd beside the particles; reconstructed beside the solver with the "
-       "[surface] settings. `ipsph run --surface` sets it; `ipsph surface OUT` makes them later.",
-       "output.surface"),
+       "[surface] settings. `ipsph run --surface` sets it; `ipsph surface OUT` makes them later."),
     # -- [render] -------------------------------------------------------------------------------
     _P("render.enabled", "bool", True, "", "Render a PNG of every frame during the run (`--no-render` turns it off; "
-       "`ipsph render OUT --video` makes a video afterwards).",
-       "render.enabled"),
-    _P("render.width", "int", 1280, "px", "Image width.", "render.width", lo=16, hi=16384),
-    _P("render.height", "int", 720, "px", "Image height.", "render.height", lo=16, hi=16384),
-    _P("render.view", "choice", "front", "", "Named view, used when camera_position is auto.",
-       "render.view", choices=tuple(RENDER_VIEWS)),
-    _P("render.camera_position", "vec3", None, "m", "Camera position. auto: from view.",
-       "render.camera_position", optional=True),
+       "`ipsph render OUT --video` makes a video afterwards)."),
+    _P("render.width", "int", 1280, "px", "Image width.", lo=16, hi=16384),
+    _P("render.height", "int", 720, "px", "Image height.", lo=16, hi=16384),
+    _P("render.view", "choice", "front", "", "Named view, used when camera_position is auto.", choices=tuple(RENDER_VIEWS)),
+    _P("render.camera_position", "vec3", None, "m", "Camera position. auto: from view.", optional=True),
     _P("render.focal_point", "vec3", None, "m", "Point the camera looks at. auto: the scene "
-       "centre.", "render.focal_point", optional=True),
-    _P("render.view_up", "vec3", None, "", "Camera up direction. auto: +y.", "render.view_up",
+       "centre.", optional=True),
+    _P("render.view_up", "vec3", None, "", "Camera up direction. auto: +y.",
        optional=True),
     _P("render.speed_range", "range2", None, "m/s", "Colour-map range of the speed. auto: "
-       "from the run.", "render.speed_range", lo=0.0, optional=True),
+       "from the run.", lo=0.0, optional=True),
     _P("render.mode", "choice", "particles", "", "What the renders show: particles (lit spheres) "
        "or surface (the reconstructed surface mesh coloured by speed, same camera and colour bar; "
-       "turns output.surface on).", "render.mode", choices=RENDER_MODES),
+       "turns output.surface on).", choices=RENDER_MODES),
     # -- [surface] ------------------------------------------------------------------------------
     _P("surface.smoothing_length", "float", 2.0, "r", "Smoothing length h of the colour field, in "
        "particle radii (support 2h). Larger: rounder, blobbier surfaces that bridge gaps and swallow "
        "small droplets, more volume (+1 % at 2.5 on a block at rest), cost grows about as h^3; "
-       "smaller: bumpy surfaces, thin sheets tear, volume lost (-5 % at 1.5).",
-       "surface.smoothing_length", lo=1.0, hi=10.0),
+       "smaller: bumpy surfaces, thin sheets tear, volume lost (-5 % at 1.5).", lo=1.0, hi=10.0),
     _P("surface.cube_size", "float", 1.0, "r", "Edge of the marching-cubes cells, in particle "
        "radii: the resolution and the cost knob. 0.5 gives about 4x the triangles of 1.0 and takes "
        "3-4x as long (a 1M-particle frame: about 12 s at 1.0, 54 s at 0.5 on 2 busy cores); above "
-       "1.5 small features and droplets fall through the grid.", "surface.cube_size",
+       "1.5 small features and droplets fall through the grid.",
        lo=0.05, hi=10.0),
     _P("surface.iso_threshold", "float", 0.6, "", "Level of the colour field (the SPH-interpolated "
        "fraction of rest density) at which the surface lies. Lower: a fatter surface that merges "
        "nearby droplets (+3.6 % volume at 0.5); higher: a thinner one, sheets and jets break up. "
-       "No effect on cost.", "surface.iso_threshold", lo=0.0, hi=1.0, lo_open=True, hi_open=True),
+       "No effect on cost.", lo=0.0, hi=1.0, lo_open=True, hi_open=True),
     _P("surface.mesh_smoothing_iterations", "int", 10, "", "Weighted Laplacian smoothing passes "
        "over the vertices (near the free surface only, so flat sheets keep their volume): removes the "
        "marching-cubes stairs and the particles' bumps; each pass rounds edges a little more (a "
-       "block at rest: -1.0 % volume at 0, -2.0 % at 10, -3.5 % at 25). Cheap.",
-       "surface.mesh_smoothing_iterations", lo=0, hi=1000),
+       "block at rest: -1.0 % volume at 0, -2.0 % at 10, -3.5 % at 25). Cheap.", lo=0, hi=1000),
     _P("surface.normal_smoothing_iterations", "int", 10, "", "Laplacian smoothing passes over the "
-       "vertex normals: smoother shading, the geometry is unchanged. Cheap.",
-       "surface.normal_smoothing_iterations", lo=0, hi=1000),
+       "vertex normals: smoother shading, the geometry is unchanged. Cheap.", lo=0, hi=1000),
     _P("surface.decimate", "bool", False, "", "Barnacle decimation and marching-cubes cleanup: "
        "about 20 % fewer, better shaped triangles (no slivers) for DCC tools, at a little more "
-       "time and a little more shrinkage.", "surface.decimate"),
+       "time and a little more shrinkage."),
     # -- [[fluid]] ------------------------------------------------------------------------------
     _P("fluid.name", "str", None, "", "Name of the body. Default: fluid<i> (i counts from 0).",
        "name"),

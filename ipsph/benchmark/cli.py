@@ -19,6 +19,7 @@ which other processes used more than ``--max-load`` cores is shown as loaded and
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
 import math
 import os
@@ -67,15 +68,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--render-sizes", nargs="*", type=int, metavar="N", default=None,
                    help="per-frame render cost of `ipsph run`'s renderer at N particles, 1280x720 "
                         "(default sizes: 100000 1000000)")
-    p.add_argument("--render-overhead", action="store_true",
-                   help="issue 4: wall time of `ipsph run` on the default scene with and without renders, "
-                        "--repeats alternating pairs, and the slow-down (target <= 25 %%)")
     p.add_argument("--surface-sizes", nargs="*", type=int, metavar="N", default=None,
                    help="issue 20: seconds per surface reconstruction of a jittered lattice of N particles on "
                         "--threads threads, median of --repeats (default size: 1000000; --set surface.KEY=VALUE)")
-    p.add_argument("--surface-overhead", action="store_true",
-                   help="issue 20: wall time of `ipsph run` on the default scene with and without --surface, "
-                        "--repeats alternating pairs, and the slow-down (target <= 25 %%)")
+    for what, issue in (("renders", 4), ("--surface", 20)):
+        p.add_argument(f"--{'render' if issue == 4 else 'surface'}-overhead", action="store_true",
+                       help=f"issue {issue}: wall time of `ipsph run` on the default scene with and without "
+                            f"{what}, --repeats alternating pairs, and the slow-down (target <= 25 %%)")
     p.add_argument("--first-frame", action="store_true",
                    help="time to first frame of `ipsph run` (default scene), with a cold and a warm Numba cache")
     p.add_argument("--table1", action="store_true",
@@ -352,14 +351,6 @@ def main(args) -> int:
         out["render_cost"] = rows
         texts.append(("## Render cost per frame\n\n" if args.markdown else "== render cost per frame ==\n")
                      + table(rows, args.markdown))
-    if args.render_overhead:
-        from .render_cost import overhead_table, render_overhead
-        summary = render_overhead(args.repeats, args.threads, args.max_load, timeout=min(args.timeout, 900.0),
-                                  log=_log)
-        out["render_overhead"] = summary
-        texts.append(("## Render overhead (default scene)\n\n" if args.markdown
-                      else "== render overhead (default scene) ==\n") + overhead_table(summary, args.markdown))
-        failed |= not summary["ok"]
     if args.surface_sizes is not None:
         from .surface_cost import sizes_table, surface_seconds
         over = [o for o in args.set if o.startswith("surface.")]
@@ -369,14 +360,16 @@ def main(args) -> int:
         texts.append(("## Surface reconstruction per frame\n\n" if args.markdown
                       else "== surface reconstruction per frame ==\n") + sizes_table(rows, args.markdown))
         failed |= any(r["particles"] is None for r in rows)
-    if args.surface_overhead:
-        from .surface_cost import overhead_table as surface_table, surface_overhead
-        summary = surface_overhead(args.repeats, args.threads, args.max_load, timeout=min(args.timeout, 900.0),
-                                   log=_log)
-        out["surface_overhead"] = summary
-        texts.append(("## Surface overhead (default scene)\n\n" if args.markdown
-                      else "== surface overhead (default scene) ==\n") + surface_table(summary, args.markdown))
-        failed |= not summary["ok"]
+    for flag, module, title in (("render_overhead", "render_cost", "Render overhead (default scene)"),
+                                ("surface_overhead", "surface_cost", "Surface overhead (default scene)")):
+        if getattr(args, flag):  # the default scene's run without and with a side process
+            mod = importlib.import_module(f"{__package__}.{module}")
+            summary = getattr(mod, flag)(args.repeats, args.threads, args.max_load, timeout=min(args.timeout, 900.0),
+                                         log=_log)
+            out[flag] = summary
+            texts.append((f"## {title}\n\n" if args.markdown else f"== {title.lower()} ==\n")
+                         + mod.overhead_table(summary, args.markdown))
+            failed |= not summary["ok"]
     if args.scaling is not None:
         peer, why = _use_peer(args.peer)
         header += f"; scaling: {why}"

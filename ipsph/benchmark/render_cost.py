@@ -23,7 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
-OVERHEAD_TARGET = 0.25  # renders may slow the default scene's run by at most 25 % (issue 4)
+from . import overhead
+
 
 
 def _block(n: int):
@@ -88,52 +89,17 @@ def table(rows: list[dict], markdown: bool) -> str:
 
 
 def _one_run(render: bool, threads: int, tmp: Path, k: int, timeout: float) -> dict:
-    from .machine import timed_ipsph_run
-    r = timed_ipsph_run([] if render else ["--no-render"], tmp / f"out-{'render' if render else 'plain'}-{k}",
-                        threads, timeout)
-    return {"render": render, "seconds": r["seconds"], "cpu_seconds": r["cpu_seconds"],
-            "exit_code": r["exit_code"], "frames": r["frames"], "pngs": r["pngs"],
-            "ok": r["exit_code"] == 0 and r["frames"] > 0 and (r["pngs"] == r["frames"] if render else True),
-            "others_cores": r["load"].others_busy_mean * r["load"].cpus, "stderr_tail": r["stderr_tail"]}
+    out = tmp / f"out-{'render' if render else 'plain'}-{k}"
+    row = overhead.default_run([] if render else ["--no-render"], out, threads, timeout,
+                               lambda r, _: r["pngs"] == r["frames"] if render else True)
+    return {"render": render, **row}
 
 
 def render_overhead(repeats: int, threads: int, max_load: float, timeout: float = 900.0, log=print) -> dict:
     """`ipsph run` (default scene) without and with renders, alternating, `repeats` pairs."""
-    pairs = []
-    with tempfile.TemporaryDirectory(prefix="ipsph-render-overhead-") as tmp:
-        _one_run(False, threads, Path(tmp), -1, timeout)  # warm the Numba and sampling caches
-        for k in range(repeats):
-            plain = _one_run(False, threads, Path(tmp), k, timeout)
-            rend = _one_run(True, threads, Path(tmp), k, timeout)
-            loaded = max(plain["others_cores"], rend["others_cores"]) > max_load
-            pairs.append({"plain": plain, "render": rend, "loaded": loaded,
-                          "ratio": rend["seconds"] / plain["seconds"]})
-            log(f"render overhead pair {k + 1}/{repeats}: {plain['seconds']:.2f} s without, "
-                f"{rend['seconds']:.2f} s with renders ({rend['pngs']} PNGs), x{pairs[-1]['ratio']:.3f}"
-                f"{' (loaded)' if loaded else ''}")
-    good = [p for p in pairs if not p["loaded"] and p["plain"]["ok"] and p["render"]["ok"]]
-    med = (lambda xs: statistics.median(xs) if xs else float("nan"))  # noqa: E731
-    summary = {"pairs": pairs, "counted": len(good),
-               "plain_seconds": med([p["plain"]["seconds"] for p in good]),
-               "render_seconds": med([p["render"]["seconds"] for p in good]),
-               "ratio_median": med([p["ratio"] for p in good]),
-               "plain_cpu": med([p["plain"]["cpu_seconds"] for p in good]),
-               "render_cpu": med([p["render"]["cpu_seconds"] for p in good]),
-               "ok": all(p["plain"]["ok"] and p["render"]["ok"] for p in pairs)}
-    return summary
+    return overhead.alternating_pairs(lambda on, tmp, k: _one_run(on, threads, tmp, k, timeout), "render", repeats,
+                                      max_load, lambda r: f"renders, {r['pngs']} PNGs", log)
 
 
 def overhead_table(s: dict, markdown: bool) -> str:
-    rows = [("without renders (--no-render)", f"{s['plain_seconds']:.2f}", f"{s['plain_cpu']:.1f}", ""),
-            ("with renders", f"{s['render_seconds']:.2f}", f"{s['render_cpu']:.1f}",
-             f"x{s['ratio_median']:.3f} (median of pair ratios; target <= x{1 + OVERHEAD_TARGET:.2f}: "
-             f"{'met' if s['ratio_median'] <= 1 + OVERHEAD_TARGET else 'NOT met'})")]
-    head = ("default scene `ipsph run`", "wall s (median)", "CPU s (median)", "slow-down")
-    note = f"{s['counted']} of {len(s['pairs'])} pairs counted (the others ran on a loaded machine or failed)"
-    if markdown:
-        lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-        lines += ["| " + " | ".join(r) + " |" for r in rows]
-    else:
-        lines = ["  ".join(f"{h:<30s}" if i == 0 else f"{h:>16s}" for i, h in enumerate(head))]
-        lines += ["  ".join(f"{c:<30s}" if i == 0 else f"{c:>16s}" for i, c in enumerate(r)) for r in rows]
-    return "\n".join(lines) + "\n\n" + note
+    return overhead.table(s, "render", "without renders (--no-render)", "with renders", markdown)

@@ -22,10 +22,10 @@ import os
 import statistics
 import subprocess
 import sys
-import tempfile
 from pathlib import Path
 
-OVERHEAD_TARGET = 0.25   # surfaces may slow the default scene's run by at most 25 % (issue 20)
+from . import overhead
+
 SECONDS_TARGET = 10.0    # a 1M-particle frame in at most 10 s on 2 cores (issue 20)
 
 _ONE = r"""
@@ -103,56 +103,22 @@ def sizes_table(rows: list[dict], markdown: bool) -> str:
     return "\n".join(lines)
 
 
+def _surfaces(out: Path) -> int:
+    return len(list((out / "surfaces").glob("*.vtp"))) if (out / "surfaces").is_dir() else 0
+
+
 def _one_run(surface: bool, threads: int, tmp: Path, k: int, timeout: float) -> dict:
-    from .machine import timed_ipsph_run
     out = tmp / f"out-{'surface' if surface else 'plain'}-{k}"
-    r = timed_ipsph_run(["--surface"] if surface else [], out, threads, timeout)
-    surfaces = len(list((out / "surfaces").glob("*.vtp"))) if (out / "surfaces").is_dir() else 0
-    return {"surface": surface, "seconds": r["seconds"], "cpu_seconds": r["cpu_seconds"],
-            "exit_code": r["exit_code"], "frames": r["frames"], "surfaces": surfaces, "pngs": r["pngs"],
-            "ok": r["exit_code"] == 0 and r["frames"] > 0 and (surfaces == r["frames"] if surface else True),
-            "others_cores": r["load"].others_busy_mean * r["load"].cpus, "stderr_tail": r["stderr_tail"]}
+    row = overhead.default_run(["--surface"] if surface else [], out, threads, timeout,
+                               lambda r, o: _surfaces(o) == r["frames"] if surface else True)
+    return {"surface": surface, "surfaces": _surfaces(out), **row}
 
 
 def surface_overhead(repeats: int, threads: int, max_load: float, timeout: float = 900.0, log=print) -> dict:
     """`ipsph run` (default scene) without and with --surface, alternating, `repeats` pairs."""
-    pairs = []
-    with tempfile.TemporaryDirectory(prefix="ipsph-surface-overhead-") as tmp:
-        _one_run(True, threads, Path(tmp), -1, timeout)  # warm the Numba and sampling caches
-        for k in range(repeats):
-            plain = _one_run(False, threads, Path(tmp), k, timeout)
-            surf = _one_run(True, threads, Path(tmp), k, timeout)
-            loaded = max(plain["others_cores"], surf["others_cores"]) > max_load
-            pairs.append({"plain": plain, "surface": surf, "loaded": loaded,
-                          "ratio": surf["seconds"] / plain["seconds"]})
-            log(f"surface overhead pair {k + 1}/{repeats}: {plain['seconds']:.2f} s without, {surf['seconds']:.2f} s "
-                f"with surfaces ({surf['surfaces']}/{surf['frames']} surfaces), x{pairs[-1]['ratio']:.3f}, others "
-                f"{max(plain['others_cores'], surf['others_cores']):.2f} cores{' (loaded)' if loaded else ''}")
-    good = [p for p in pairs if not p["loaded"] and p["plain"]["ok"] and p["surface"]["ok"]]
-    every = [p for p in pairs if p["plain"]["ok"] and p["surface"]["ok"]]
-    med = (lambda xs: statistics.median(xs) if xs else float("nan"))  # noqa: E731
-    return {"pairs": pairs, "counted": len(good),
-            "plain_seconds": med([p["plain"]["seconds"] for p in good]),
-            "surface_seconds": med([p["surface"]["seconds"] for p in good]),
-            "ratio_median": med([p["ratio"] for p in good]),
-            "ratio_median_all": med([p["ratio"] for p in every]),
-            "plain_cpu": med([p["plain"]["cpu_seconds"] for p in good]),
-            "surface_cpu": med([p["surface"]["cpu_seconds"] for p in good]),
-            "ok": all(p["plain"]["ok"] and p["surface"]["ok"] for p in pairs)}
+    return overhead.alternating_pairs(lambda on, tmp, k: _one_run(on, threads, tmp, k, timeout), "surface", repeats,
+                                      max_load, lambda r: f"surfaces, {r['surfaces']}/{r['frames']}", log)
 
 
 def overhead_table(s: dict, markdown: bool) -> str:
-    met = "met" if s["ratio_median"] <= 1 + OVERHEAD_TARGET else "NOT met"
-    rows = [("without surfaces", f"{s['plain_seconds']:.2f}", f"{s['plain_cpu']:.1f}", ""),
-            ("with --surface", f"{s['surface_seconds']:.2f}", f"{s['surface_cpu']:.1f}",
-             f"x{s['ratio_median']:.3f} (median of pair ratios; target <= x{1 + OVERHEAD_TARGET:.2f}: {met})")]
-    head = ("default scene `ipsph run`", "wall s (median)", "CPU s (median)", "slow-down")
-    note = (f"{s['counted']} of {len(s['pairs'])} pairs counted (the others ran on a loaded machine or failed); "
-            f"median ratio over every pair that ran: x{s['ratio_median_all']:.3f}")
-    if markdown:
-        lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-        lines += ["| " + " | ".join(r) + " |" for r in rows]
-    else:
-        lines = ["  ".join(f"{h:<30s}" if i == 0 else f"{h:>16s}" for i, h in enumerate(head))]
-        lines += ["  ".join(f"{c:<30s}" if i == 0 else f"{c:>16s}" for i, c in enumerate(r)) for r in rows]
-    return "\n".join(lines) + "\n\n" + note
+    return overhead.table(s, "surface", "without surfaces", "with --surface", markdown)
