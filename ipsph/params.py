@@ -19,6 +19,21 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+# The lattice spacing d and the kernel support H, in particle radii r (method.md section 1)
+SPACING_RADII = 2.0   # d = 2 r
+SUPPORT_RADII = 4.0   # H = 4 r
+
+
+def spacing(r: float) -> float:
+    """The lattice spacing d = 2 r."""
+    return SPACING_RADII * r
+
+
+def support(r: float) -> float:
+    """The kernel support H = 4 r."""
+    return SUPPORT_RADII * r
+
+
 METHOD_NAMES = ("ipsph", "pf", "dfsph")  # simulation.method; ipsph.methods.METHODS implements each
 
 # A step's timed phases, in report order: timer name -> (short label, what it times). Each method

@@ -12,6 +12,7 @@ import numpy as np
 from . import sampling
 from .errors import ConfigError
 from .model import Scene
+from .params import spacing
 
 BYTES_PER_PARTICLE = 1024  # the solver's budget per fluid particle (docs/performance.md)
 RENDER_BYTES_PER_PIXEL = 112  # render process peak: static layers, depth/owner/shade buffers, frame and
@@ -61,7 +62,7 @@ def check_size(scene: Scene, max_particles: int | None) -> int:
 
 def check_geometry(scene: Scene) -> None:
     """Refuse a particle radius too large for a fluid body: fewer than 2 particles across it (exit 2)."""
-    d = 2.0 * scene.particle_radius
+    d = spacing(scene.particle_radius)
     for i, spec in enumerate(scene.fluids):
         ext = _fluid_extent(spec)
         if ext is None:

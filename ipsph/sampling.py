@@ -27,6 +27,7 @@ import numpy as np
 
 from ipsph import meshes, model, sample_cache
 from ipsph.inside import inside_mesh
+from ipsph.params import spacing
 from ipsph.errors import ConfigError
 
 if TYPE_CHECKING:
@@ -142,7 +143,7 @@ def _mesh_lattice(bounds, d: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _sample_fluid(spec: model.FluidSpec, r: float) -> np.ndarray:
-    d = 2.0 * r
+    d = spacing(r)
     if _shape(spec) == "box":
         lo, hi = _scaled_box(spec)
         counts = _fluid_box_counts(lo, hi, d)
@@ -167,7 +168,7 @@ def rest_lattice(scene: model.Scene, boundary_x: np.ndarray) -> np.ndarray:
     walls and fluid at rest together read rho0 (method.md section 1). Empty without fluid or walls.
     """
     r = _check_radius(scene.particle_radius)
-    d, h = 2.0 * r, 8.0 * r
+    d, h = spacing(r), 8.0 * r
     xb = np.ascontiguousarray(np.asarray(boundary_x, dtype=np.float64).reshape(-1, 3))
     if not scene.fluids or len(xb) == 0:
         return np.empty((0, 3))
@@ -208,7 +209,7 @@ def estimate_fluid_count(spec: model.FluidSpec, radius: float) -> int:
     """Particle count before sampling: exact for boxes; volume / d³ for closed meshes (the lattice
     count estimates the volume to a few percent); the bounding-box lattice (an upper bound) for open ones."""
     r = _check_radius(radius)
-    d = 2.0 * r
+    d = spacing(r)
     if _shape(spec) == "box":
         lo, hi = _scaled_box(spec)
         return int(np.prod(_fluid_box_counts(lo, hi, d)))
@@ -344,15 +345,15 @@ def _sample_general_surface(mesh, r: float) -> np.ndarray:
 
 
 def _sample_boundary(spec: model.BoundarySpec, r: float) -> np.ndarray:
-    spacing = BOUNDARY_SPACING_FACTOR * r
+    step = BOUNDARY_SPACING_FACTOR * r
     if _shape(spec) == "box":
         lo, hi = _scaled_box(spec)
-        return meshes.transform_points(_box_surface_grid(lo, hi, spacing), _rigid(spec.transform))
+        return meshes.transform_points(_box_surface_grid(lo, hi, step), _rigid(spec.transform))
     scaled, _ = _prepared(_mesh_path(spec), model.Transform(scale=spec.transform.scale),
                           need_closed=False, allow_open=True)
     box = meshes.aligned_box(scaled)
     if box is not None:
-        return meshes.transform_points(_box_surface_grid(box[0], box[1], spacing), _rigid(spec.transform))
+        return meshes.transform_points(_box_surface_grid(box[0], box[1], step), _rigid(spec.transform))
     mesh, _ = _prepared(_mesh_path(spec), spec.transform, need_closed=False, allow_open=True)
     return _sample_general_surface(mesh, r)
 
@@ -378,7 +379,7 @@ def _inside_boundary(points: np.ndarray, spec: model.BoundarySpec, r: float) -> 
         local = meshes.inverse_transform_points(points, _rigid(spec.transform))
         return np.all((local > lo) & (local < hi), axis=1)
     mesh, report = _prepared(_mesh_path(spec), spec.transform, need_closed=False, allow_open=True)
-    return inside_mesh(points, mesh, 2.0 * r, closed=report.closed)
+    return inside_mesh(points, mesh, spacing(r), closed=report.closed)
 
 
 def solid_mask(points: np.ndarray, boundaries: Sequence[model.BoundarySpec], radius: float) -> np.ndarray:

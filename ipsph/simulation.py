@@ -26,6 +26,7 @@ from .errors import NumericalFailure
 from .methods import METHODS
 from .methods.base import StepReport
 from .model import Role, Scene
+from .params import spacing, support
 from .particles import ParticleState
 
 
@@ -85,8 +86,8 @@ class Simulation:
         self.scene = scene
         self.be = get_backend(backend) if isinstance(backend, str) else backend
         r = scene.particle_radius
-        self.spacing = 2.0 * r
-        self.support = 4.0 * r
+        self.spacing = spacing(r)
+        self.support = support(r)
         # every particle carries the water of its lattice cell, rho0 d^3 (method.md section 1); one
         # fluid mass: the passes take it as a scalar
         mass = scene.density0 * self.spacing ** 3

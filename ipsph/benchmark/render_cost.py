@@ -29,12 +29,13 @@ from . import overhead
 
 def _block(n: int):
     from ..meshes import box_mesh
+    from ..params import spacing
     r = 0.01
     side = max(int(round(n ** (1 / 3))), 1)
-    g = (np.arange(side) + 1.0) * 2 * r
+    g = (np.arange(side) + 1.0) * spacing(r)
     X, Y, Z = np.meshgrid(g, g, g, indexing="ij")
     pts = np.stack([X.ravel(), Y.ravel(), Z.ravel()], axis=1)
-    ext = (side + 1) * 2 * r
+    ext = (side + 1) * spacing(r)
     vel = np.zeros_like(pts)
     vel[:, 0] = 3.0 * pts[:, 1] / ext
     return pts, vel, r, [0.0, ext, 0.0, ext, 0.0, ext], box_mesh((0.0, 0.0, 0.0), (ext, ext, ext))

@@ -18,6 +18,7 @@ import os
 from pathlib import Path
 
 from ..errors import ConfigError
+from ..params import spacing
 from ..model import TimeStepConfig
 from ..scene import lattice_counts
 
@@ -87,7 +88,7 @@ def _scaling_boxes(n_target: int, radius: float) -> tuple[tuple[float, ...], tup
     """
     if not (isinstance(n_target, int) and n_target >= 8):
         raise ConfigError(f"--scaling size {n_target!r} must be an integer >= 8 fluid particles")
-    d = 2.0 * radius
+    d = spacing(radius)
     nx, ny = _scaling_dims(n_target)
     ex, ey = (nx + 1) * d, (ny + 1) * d
     return (ex, ey, ex), (2.5 * ex, 1.25 * ey, ex)

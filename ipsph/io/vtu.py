@@ -12,7 +12,6 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import WriteError
 from . import atomic_path
 
 __all__ = ["write_particles", "write_surface", "read_particles"]

@@ -19,7 +19,7 @@ from typing import Any, Iterable
 from ..errors import ConfigError, read_text
 from ..model import (BoundarySpec, FluidSpec, Method, OutputConfig, RenderConfig, Role, Scene,
                      SolverConfig, SurfaceConfig, TimeStepConfig, Transform)
-from ..params import AUTO, PARAM_BY_PATH, PARAMS, RENAMED, Param, default
+from ..params import AUTO, PARAM_BY_PATH, PARAMS, RENAMED, Param, default, spacing
 from .text import _allowed, _fmt, _fmt_vec, _show, _tname
 
 ENTITIES = ("fluid", "boundary")
@@ -69,7 +69,7 @@ def lattice_counts(box_min, box_max, particle_radius: float) -> tuple[int, int, 
     """Particles per axis of a box fluid, SPlisHSPlasH's FluidBlocks rule (denseMode 0):
     n = round(extent / 2r) - 1 with C's round (halves away from zero, not Python's banker's
     rounding); the first particle sits at min + 2r."""
-    d = 2.0 * particle_radius
+    d = spacing(particle_radius)
     return tuple(int(math.floor((hi - lo) / d + 0.5)) - 1 for lo, hi in zip(box_min, box_max))
 
 
