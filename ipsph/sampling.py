@@ -34,7 +34,7 @@ from ipsph.errors import ConfigError
 if TYPE_CHECKING:
     import pyvista as pv
 
-SAMPLER_VERSION = "ipsph-sampling-1"
+SAMPLER_VERSION = "ipsph-sampling-2"
 BOUNDARY_SPACING_FACTOR = 1.5     # box-grid spacing <= 1.5 r (method.md section 1)
 POISSON_RADIUS_FACTOR = 1.0       # general meshes: samples at least r apart, none missing beyond r
 CANDIDATE_SPACING_FACTOR = 0.2    # candidate density r/5 (ecosystem.md)
@@ -139,7 +139,7 @@ def _mesh_lattice(bounds, d: float) -> tuple[np.ndarray, np.ndarray]:
     return origin, counts
 
 
-def _sample_fluid(spec: model.FluidSpec, r: float) -> np.ndarray:
+def _sample_fluid(spec: model.FluidSpec, r: float, frame=None) -> np.ndarray:
     d = 2.0 * r
     if _shape(spec) == "box":
         lo, hi = _scaled_box(spec)
@@ -149,57 +149,110 @@ def _sample_fluid(spec: model.FluidSpec, r: float) -> np.ndarray:
         return meshes.transform_points(_grid(lo + d, counts, d), _rigid(spec.transform))
     mesh, report = _prepared(_mesh_path(spec), spec.transform, need_closed=True,
                              allow_open=spec.allow_open_mesh)
-    origin, counts = _mesh_lattice(report.bounds, d)
-    lattice = _grid(origin, counts, d)
+    if frame is None:
+        origin, counts = _mesh_lattice(report.bounds, d)
+        lattice = _grid(origin, counts, d)
+    else:
+        b = np.asarray(report.bounds, dtype=np.float64)
+        corners = np.array([[b[i], b[2 + j], b[4 + k]] for i in (0, 1) for j in (0, 1) for k in (0, 1)])
+        lattice = _frame_points(frame, corners, d, 0.0)
     inside = meshes.inside_mesh(lattice, mesh, d, closed=report.closed)
     return np.ascontiguousarray(lattice[inside])
 
 
-def rest_lattice(scene: model.Scene, boundary_x: np.ndarray) -> np.ndarray:
-    """The first fluid body's lattice continued over the free space within 2H = 8r of the walls.
+def _frame_points(frame, points: np.ndarray, d: float, pad: float) -> np.ndarray:
+    """The points of the lattice `frame` = (origin, rotation rows) that lie in the box spanned by
+    `points` (in lattice coordinates), widened by `pad` metres."""
+    origin, rot = frame
+    local = (np.asarray(points, dtype=np.float64) - origin) @ rot.T / d
+    lo = np.floor(local.min(axis=0) - pad / d - 1e-9).astype(np.int64)
+    hi = np.ceil(local.max(axis=0) + pad / d + 1e-9).astype(np.int64)
+    axes = [np.arange(lo[k], hi[k] + 1, dtype=np.float64) for k in range(3)]
+    ijk = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    return np.ascontiguousarray(origin + d * (ijk @ rot))
 
-    Lattice points (spacing d, the first fluid's origin and rotation) that a fluid filling every
-    container would keep under the same rules as the real fluid (`sample_scene`: at least d from
-    every wall particle, inside no obstacle, inside a container when there are any), restricted to
-    those within 2H of a wall particle. `boundary.Boundary` fits the wall volumes to it so that
-    walls and fluid at rest together read rho0 (method.md section 1). Empty without fluid or walls.
+
+def lattice_frame(scene: model.Scene):
+    """(origin, rotation rows) of the scene's rest lattice, or None (no fluid).
+
+    The first box-shaped container's (a box, or a mesh that is an axis-aligned box after scaling):
+    its first layer sits d inside the walls, where a box fluid filling it puts its first layer
+    (SPlisHSPlasH's FluidBlocks rule). Without one, the first fluid body's own lattice. Mesh fluids
+    are sampled on this lattice, so a mesh fluid and a box fluid filling the same tank are the same
+    particles; `rest_lattice` continues it to fit the walls to.
     """
     r = _check_radius(scene.particle_radius)
-    d, h = 2.0 * r, 8.0 * r
-    xb = np.ascontiguousarray(np.asarray(boundary_x, dtype=np.float64).reshape(-1, 3))
-    if not scene.fluids or len(xb) == 0:
-        return np.empty((0, 3))
-    first = fluid_positions(scene.fluids[0], r)
-    if len(first) == 0:
-        return np.empty((0, 3))
-    rigid = _rigid(scene.fluids[0].transform)
-    anchor = first[0]
-    rot = meshes.transform_points(np.eye(3), rigid) - meshes.transform_points(np.zeros((1, 3)), rigid)
-    local = (xb - anchor) @ rot.T / d            # wall particles in lattice units (rot rows: axes)
-    lo = np.floor(local.min(axis=0) - h / d).astype(np.int64)
-    hi = np.ceil(local.max(axis=0) + h / d).astype(np.int64)
-    kept = []
-    ys, zs = np.arange(lo[1], hi[1] + 1), np.arange(lo[2], hi[2] + 1)
-    gy, gz = np.meshgrid(ys, zs, indexing="ij")
-    plane = np.stack([gy.ravel(), gz.ravel()], axis=1).astype(np.float64)
-    chunk = max(1, 2_000_000 // max(len(plane), 1))
-    for x0 in range(lo[0], hi[0] + 1, chunk):
-        xs = np.arange(x0, min(x0 + chunk, hi[0] + 1), dtype=np.float64)
-        ijk = np.concatenate([np.column_stack([np.full(len(plane), xi), plane]) for xi in xs])
-        pts = np.ascontiguousarray(anchor + d * (ijk @ rot))
-        near = nearest_distance(pts, xb, h) < h
-        pts = pts[near]
-        if len(pts) == 0:
+    d = 2.0 * r
+    for spec in scene.boundaries:
+        if spec.role != model.Role.CONTAINER:
             continue
-        ok, _ = remove_overlaps(pts, xb, default_overlap_distance(r), boundaries=scene.boundaries, radius=r)
-        kept.append(pts[ok])
+        if _shape(spec) == "box":
+            lo, _ = _scaled_box(spec)
+        else:
+            scaled, _ = _prepared(_mesh_path(spec), model.Transform(scale=spec.transform.scale),
+                                  need_closed=False, allow_open=True)
+            box = meshes.aligned_box(scaled)
+            if box is None:
+                continue
+            lo = np.asarray(box[0], dtype=np.float64)
+        return _rigid_frame(lo + d, _rigid(spec.transform))
+    if not scene.fluids:
+        return None
+    spec = scene.fluids[0]
+    if _shape(spec) == "box":
+        lo, _ = _scaled_box(spec)
+        return _rigid_frame(lo + d, _rigid(spec.transform))
+    _, report = _prepared(_mesh_path(spec), spec.transform, need_closed=True, allow_open=spec.allow_open_mesh)
+    origin, _ = _mesh_lattice(report.bounds, d)
+    return origin, np.eye(3)
+
+
+def _rigid_frame(local_origin: np.ndarray, rigid: model.Transform):
+    origin = meshes.transform_points(local_origin.reshape(1, 3), rigid)[0]
+    rot = meshes.transform_points(np.eye(3), rigid) - meshes.transform_points(np.zeros((1, 3)), rigid)
+    return origin, rot
+
+
+def rest_lattice(scene: model.Scene, boundary_x: np.ndarray) -> np.ndarray:
+    """The scene's rest lattice (`lattice_frame`) over the free space within 2H = 8r of the walls.
+
+    Lattice points that a fluid filling every container would keep under the same rules as the
+    real fluid (`sample_scene`: at least d from every wall particle, inside no obstacle, inside a
+    container when there are any), restricted to those within 2H of a wall particle.
+    `boundary.Boundary` fits the wall volumes to it so that walls and fluid at rest together read
+    rho0 (method.md section 1). Empty without fluid or walls.
+    """
+    r = _check_radius(scene.particle_radius)
+    d, reach = 2.0 * r, 8.0 * r
+    xb = np.ascontiguousarray(np.asarray(boundary_x, dtype=np.float64).reshape(-1, 3))
+    frame = lattice_frame(scene)
+    if frame is None or len(xb) == 0:
+        return np.empty((0, 3))
+    origin, rot = frame
+    local = (xb - origin) @ rot.T / d
+    lo = np.floor(local.min(axis=0) - reach / d).astype(np.int64)
+    hi = np.ceil(local.max(axis=0) + reach / d).astype(np.int64)
+    gy, gz = np.meshgrid(np.arange(lo[1], hi[1] + 1), np.arange(lo[2], hi[2] + 1), indexing="ij")
+    plane = np.stack([gy.ravel(), gz.ravel()], axis=1).astype(np.float64)
+    kept = []
+    step = max(1, 2_000_000 // max(len(plane), 1))   # lattice slabs of ~2M points
+    for x0 in range(lo[0], hi[0] + 1, step):
+        xs = np.arange(x0, min(x0 + step, hi[0] + 1), dtype=np.float64)
+        ijk = np.column_stack([np.repeat(xs, len(plane)), np.tile(plane, (len(xs), 1))])
+        pts = np.ascontiguousarray(origin + d * (ijk @ rot))
+        pts = pts[nearest_distance(pts, xb, reach) < reach]
+        if len(pts):
+            ok, _ = remove_overlaps(pts, xb, default_overlap_distance(r), boundaries=scene.boundaries, radius=r)
+            kept.append(pts[ok])
     return np.ascontiguousarray(np.concatenate(kept)) if kept else np.empty((0, 3))
 
 
-def fluid_positions(spec: model.FluidSpec, radius: float, *, cache: bool = True) -> np.ndarray:
-    """(N,3) float64 fluid particle positions for a box or mesh fluid body (module docstring)."""
+def fluid_positions(spec: model.FluidSpec, radius: float, *, cache: bool = True, frame=None) -> np.ndarray:
+    """(N,3) float64 fluid particle positions for a box or mesh fluid body (module docstring);
+    a mesh fluid on the lattice `frame` (`lattice_frame`) when given, else on its own centred one."""
     r = _check_radius(radius)
-    return _cached("fluid", spec, r, cache, lambda: _sample_fluid(spec, r))
+    extra = () if frame is None or _shape(spec) == "box" else (frame[0].tolist(), frame[1].tolist())
+    return _cached("fluid", spec, r, cache, lambda: _sample_fluid(spec, r, None if not extra else frame), extra)
 
 
 def estimate_fluid_count(spec: model.FluidSpec, radius: float) -> int:
@@ -525,11 +578,14 @@ def _cache_write(path: Path, arr: np.ndarray) -> None:
                 pass
 
 
-def _cached(kind: str, spec, r: float, use_cache: bool, sample) -> np.ndarray:
+def _cached(kind: str, spec, r: float, use_cache: bool, sample, extra=()) -> np.ndarray:
     _shape(spec)
     if not use_cache:
         return sample()
-    path = cache_dir() / f"{kind}-{cache_key(kind, spec, r)}.npy"
+    key = cache_key(kind, spec, r)
+    if extra:
+        key = hashlib.sha256((key + repr(extra)).encode()).hexdigest()
+    path = cache_dir() / f"{kind}-{key}.npy"
     hit = _cache_read(path)
     if hit is not None:
         return hit
