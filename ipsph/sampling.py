@@ -252,7 +252,8 @@ def fluid_positions(spec: model.FluidSpec, radius: float, *, cache: bool = True,
     a mesh fluid on the lattice `frame` (`lattice_frame`) when given, else on its own centred one."""
     r = _check_radius(radius)
     extra = () if frame is None or _shape(spec) == "box" else (frame[0].tolist(), frame[1].tolist())
-    return _cached("fluid", spec, r, cache, lambda: _sample_fluid(spec, r, None if not extra else frame), extra)
+    sample = (lambda: _sample_fluid(spec, r, frame)) if extra else (lambda: _sample_fluid(spec, r))
+    return _cached("fluid", spec, r, cache, sample, extra)
 
 
 def estimate_fluid_count(spec: model.FluidSpec, radius: float) -> int:
