@@ -59,6 +59,15 @@ def _rows_dot(nbr, cnt, a, v, out):
 
 
 @njit(cache=True)
+def _dot(a, b):
+    """Serial dot product (a fixed summation order, unlike a threaded BLAS)."""
+    s = 0.0
+    for i in range(a.shape[0]):
+        s += a[i] * b[i]
+    return s
+
+
+@njit(cache=True)
 def _rows_tdot(nbr, cnt, a, y, out):
     """out = A^T y (serial scatter: a fixed summation order, so the fit is reproducible)."""
     out[:] = 0.0
@@ -107,7 +116,10 @@ def fit_volumes(xb: np.ndarray, psi_akinci: np.ndarray, lattice: np.ndarray, spa
         |A psi - tau|^2 + mu |psi - psi_akinci|^2,      A_ib = W(x_i - x_b),
 
     by conjugate gradients on the normal equations (mu = FIT_REGULARISATION * mean diag A^T A),
-    then clips at zero. Returns psi and a report of the fit (rest densities before and after).
+    then clips to [0, psi_akinci]: the fit only removes Akinci's over-count, so a lattice that sits
+    farther than d from a wall (a misaligned or obstacle-only scene) never makes walls heavier.
+    Every sum has a fixed order, so the volumes do not depend on the thread count.
+    Returns psi and a report of the fit (rest densities at the probes before and after).
     """
     probe_order, fnbr, fcnt = radius_lists(lattice, lattice, h)
     xs_lat = np.ascontiguousarray(lattice[probe_order])
@@ -147,19 +159,19 @@ def fit_volumes(xb: np.ndarray, psi_akinci: np.ndarray, lattice: np.ndarray, spa
     res = rhs.copy()
     dirn = res.copy()
     q = np.empty(len(xb))
-    rr = float(res @ res)
+    rr = _dot(res, res)
     rr0 = rr
     it = 0
     while it < FIT_ITERATIONS and rr > 1e-24 * rr0:
         normal(dirn, q)
-        step = rr / float(dirn @ q)
+        step = rr / _dot(dirn, q)
         x += step * dirn
         res -= step * q
-        rr_new = float(res @ res)
+        rr_new = _dot(res, res)
         dirn = res + (rr_new / rr) * dirn
         rr = rr_new
         it += 1
-    psi_sorted = np.maximum(p0 + x, 0.0)
+    psi_sorted = np.clip(p0 + x, 0.0, p0)
     _rows_dot(nbr, cnt, a, psi_sorted, ap)
     rest = fluid[probes] + ap
     report.update(iterations=it, rest_density=(float(rest.min()), float(rest.max())),

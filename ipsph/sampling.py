@@ -5,7 +5,7 @@ Conventions (r particle radius, d = 2r):
   n = round(extent / d) - 1 particles at min + d + i d, then x' = R p + t for every lattice point p.
 - Fluid mesh: a cubic lattice of spacing d centred on the transformed mesh's bounding box,
   n = round(extent / d) points per axis (so the outer layers sit about d/2 inside the box faces and
-  a flat face aligned with the box is not over-counted), kept where `meshes.inside_mesh` says
+  a flat face aligned with the box is not over-counted), kept where `inside.inside_mesh` says
   inside. Count · d³ then estimates the mesh volume without bias.
 - Boundary box (also a mesh that is an axis-aligned box after scaling, e.g. UnitBox.obj): a regular
   grid per face, n = ceil(edge / 1.5r) intervals per edge, edge and corner nodes once.
@@ -17,23 +17,24 @@ Conventions (r particle radius, d = 2r):
 """
 from __future__ import annotations
 
+import hashlib
 import math
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import numba as nb
 import numpy as np
 
 from ipsph import meshes, model, sample_cache
 from ipsph.inside import inside_mesh
 from ipsph.params import spacing
+from ipsph.point_kernels import nearest_distance, poisson_filter  # noqa: F401 (sampling's API)
 from ipsph.errors import ConfigError
 
 if TYPE_CHECKING:
     import pyvista as pv
 
-SAMPLER_VERSION = "ipsph-sampling-1"
+SAMPLER_VERSION = "ipsph-sampling-2"
 BOUNDARY_SPACING_FACTOR = 1.5     # box-grid spacing <= 1.5 r (method.md section 1)
 POISSON_RADIUS_FACTOR = 1.0       # general meshes: samples at least r apart, none missing beyond r
 CANDIDATE_SPACING_FACTOR = 0.2    # candidate density r/5 (ecosystem.md)
@@ -142,7 +143,7 @@ def _mesh_lattice(bounds, d: float) -> tuple[np.ndarray, np.ndarray]:
     return origin, counts
 
 
-def _sample_fluid(spec: model.FluidSpec, r: float) -> np.ndarray:
+def _sample_fluid(spec: model.FluidSpec, r: float, frame=None) -> np.ndarray:
     d = spacing(r)
     if _shape(spec) == "box":
         lo, hi = _scaled_box(spec)
@@ -152,57 +153,111 @@ def _sample_fluid(spec: model.FluidSpec, r: float) -> np.ndarray:
         return meshes.transform_points(_grid(lo + d, counts, d), _rigid(spec.transform))
     mesh, report = _prepared(_mesh_path(spec), spec.transform, need_closed=True,
                              allow_open=spec.allow_open_mesh)
-    origin, counts = _mesh_lattice(report.bounds, d)
-    lattice = _grid(origin, counts, d)
+    if frame is None:
+        origin, counts = _mesh_lattice(report.bounds, d)
+        lattice = _grid(origin, counts, d)
+    else:
+        b = np.asarray(report.bounds, dtype=np.float64)
+        corners = np.array([[b[i], b[2 + j], b[4 + k]] for i in (0, 1) for j in (0, 1) for k in (0, 1)])
+        lattice = _frame_points(frame, corners, d, 0.0)
     inside = inside_mesh(lattice, mesh, d, closed=report.closed)
     return np.ascontiguousarray(lattice[inside])
 
 
-def rest_lattice(scene: model.Scene, boundary_x: np.ndarray) -> np.ndarray:
-    """The first fluid body's lattice continued over the free space within 2H = 8r of the walls.
+def _frame_points(frame, points: np.ndarray, d: float, pad: float) -> np.ndarray:
+    """The points of the lattice `frame` = (origin, rotation rows) that lie in the box spanned by
+    `points` (in lattice coordinates), widened by `pad` metres."""
+    origin, rot = frame
+    local = (np.asarray(points, dtype=np.float64) - origin) @ rot.T / d
+    lo = np.floor(local.min(axis=0) - pad / d - 1e-9).astype(np.int64)
+    hi = np.ceil(local.max(axis=0) + pad / d + 1e-9).astype(np.int64)
+    axes = [np.arange(lo[k], hi[k] + 1, dtype=np.float64) for k in range(3)]
+    ijk = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    return np.ascontiguousarray(origin + d * (ijk @ rot))
 
-    Lattice points (spacing d, the first fluid's origin and rotation) that a fluid filling every
-    container would keep under the same rules as the real fluid (`sample_scene`: at least d from
-    every wall particle, inside no obstacle, inside a container when there are any), restricted to
-    those within 2H of a wall particle. `boundary.Boundary` fits the wall volumes to it so that
-    walls and fluid at rest together read rho0 (method.md section 1). Empty without fluid or walls.
+
+def lattice_frame(scene: model.Scene):
+    """(origin, rotation rows) of the scene's rest lattice, or None (no fluid).
+
+    The first box-shaped container's (a box, or a mesh that is an axis-aligned box after scaling):
+    its first layer sits d inside the walls, where a box fluid filling it puts its first layer
+    (SPlisHSPlasH's FluidBlocks rule). Without one, the first fluid body's own lattice. Mesh fluids
+    are sampled on this lattice, so a mesh fluid and a box fluid filling the same tank are the same
+    particles; `rest_lattice` continues it to fit the walls to.
     """
     r = _check_radius(scene.particle_radius)
-    d, h = spacing(r), 8.0 * r
-    xb = np.ascontiguousarray(np.asarray(boundary_x, dtype=np.float64).reshape(-1, 3))
-    if not scene.fluids or len(xb) == 0:
-        return np.empty((0, 3))
-    first = fluid_positions(scene.fluids[0], r)
-    if len(first) == 0:
-        return np.empty((0, 3))
-    rigid = _rigid(scene.fluids[0].transform)
-    anchor = first[0]
-    rot = meshes.transform_points(np.eye(3), rigid) - meshes.transform_points(np.zeros((1, 3)), rigid)
-    local = (xb - anchor) @ rot.T / d            # wall particles in lattice units (rot rows: axes)
-    lo = np.floor(local.min(axis=0) - h / d).astype(np.int64)
-    hi = np.ceil(local.max(axis=0) + h / d).astype(np.int64)
-    kept = []
-    ys, zs = np.arange(lo[1], hi[1] + 1), np.arange(lo[2], hi[2] + 1)
-    gy, gz = np.meshgrid(ys, zs, indexing="ij")
-    plane = np.stack([gy.ravel(), gz.ravel()], axis=1).astype(np.float64)
-    chunk = max(1, 2_000_000 // max(len(plane), 1))
-    for x0 in range(lo[0], hi[0] + 1, chunk):
-        xs = np.arange(x0, min(x0 + chunk, hi[0] + 1), dtype=np.float64)
-        ijk = np.concatenate([np.column_stack([np.full(len(plane), xi), plane]) for xi in xs])
-        pts = np.ascontiguousarray(anchor + d * (ijk @ rot))
-        near = nearest_distance(pts, xb, h) < h
-        pts = pts[near]
-        if len(pts) == 0:
+    d = spacing(r)
+    for spec in scene.boundaries:
+        if spec.role != model.Role.CONTAINER:
             continue
-        ok, _ = remove_overlaps(pts, xb, default_overlap_distance(r), boundaries=scene.boundaries, radius=r)
-        kept.append(pts[ok])
+        if _shape(spec) == "box":
+            lo, _ = _scaled_box(spec)
+        else:
+            scaled, _ = _prepared(_mesh_path(spec), model.Transform(scale=spec.transform.scale),
+                                  need_closed=False, allow_open=True)
+            box = meshes.aligned_box(scaled)
+            if box is None:
+                continue
+            lo = np.asarray(box[0], dtype=np.float64)
+        return _rigid_frame(lo + d, _rigid(spec.transform))
+    if not scene.fluids:
+        return None
+    spec = scene.fluids[0]
+    if _shape(spec) == "box":
+        lo, _ = _scaled_box(spec)
+        return _rigid_frame(lo + d, _rigid(spec.transform))
+    _, report = _prepared(_mesh_path(spec), spec.transform, need_closed=True, allow_open=spec.allow_open_mesh)
+    origin, _ = _mesh_lattice(report.bounds, d)
+    return origin, np.eye(3)
+
+
+def _rigid_frame(local_origin: np.ndarray, rigid: model.Transform):
+    origin = meshes.transform_points(local_origin.reshape(1, 3), rigid)[0]
+    rot = meshes.transform_points(np.eye(3), rigid) - meshes.transform_points(np.zeros((1, 3)), rigid)
+    return origin, rot
+
+
+def rest_lattice(scene: model.Scene, boundary_x: np.ndarray) -> np.ndarray:
+    """The scene's rest lattice (`lattice_frame`) over the free space within 2H = 8r of the walls.
+
+    Lattice points that a fluid filling every container would keep under the same rules as the
+    real fluid (`sample_scene`: at least d from every wall particle, inside no obstacle, inside a
+    container when there are any), restricted to those within 2H of a wall particle.
+    `boundary.Boundary` fits the wall volumes to it so that walls and fluid at rest together read
+    rho0 (method.md section 1). Empty without fluid or walls.
+    """
+    r = _check_radius(scene.particle_radius)
+    d, reach = spacing(r), 8.0 * r
+    xb = np.ascontiguousarray(np.asarray(boundary_x, dtype=np.float64).reshape(-1, 3))
+    frame = lattice_frame(scene)
+    if frame is None or len(xb) == 0:
+        return np.empty((0, 3))
+    origin, rot = frame
+    local = (xb - origin) @ rot.T / d
+    lo = np.floor(local.min(axis=0) - reach / d).astype(np.int64)
+    hi = np.ceil(local.max(axis=0) + reach / d).astype(np.int64)
+    gy, gz = np.meshgrid(np.arange(lo[1], hi[1] + 1), np.arange(lo[2], hi[2] + 1), indexing="ij")
+    plane = np.stack([gy.ravel(), gz.ravel()], axis=1).astype(np.float64)
+    kept = []
+    step = max(1, 2_000_000 // max(len(plane), 1))   # lattice slabs of ~2M points
+    for x0 in range(lo[0], hi[0] + 1, step):
+        xs = np.arange(x0, min(x0 + step, hi[0] + 1), dtype=np.float64)
+        ijk = np.column_stack([np.repeat(xs, len(plane)), np.tile(plane, (len(xs), 1))])
+        pts = np.ascontiguousarray(origin + d * (ijk @ rot))
+        pts = pts[nearest_distance(pts, xb, reach) < reach]
+        if len(pts):
+            ok, _ = remove_overlaps(pts, xb, default_overlap_distance(r), boundaries=scene.boundaries, radius=r)
+            kept.append(pts[ok])
     return np.ascontiguousarray(np.concatenate(kept)) if kept else np.empty((0, 3))
 
 
-def fluid_positions(spec: model.FluidSpec, radius: float, *, cache: bool = True) -> np.ndarray:
-    """(N,3) float64 fluid particle positions for a box or mesh fluid body (module docstring)."""
+def fluid_positions(spec: model.FluidSpec, radius: float, *, cache: bool = True, frame=None) -> np.ndarray:
+    """(N,3) float64 fluid particle positions for a box or mesh fluid body (module docstring);
+    a mesh fluid on the lattice `frame` (`lattice_frame`) when given, else on its own centred one."""
     r = _check_radius(radius)
-    return _cached("fluid", spec, r, cache, lambda: _sample_fluid(spec, r))
+    extra = () if frame is None or _shape(spec) == "box" else (frame[0].tolist(), frame[1].tolist())
+    sample = (lambda: _sample_fluid(spec, r, frame)) if extra else (lambda: _sample_fluid(spec, r))
+    return _cached("fluid", spec, r, cache, sample, extra)
 
 
 def estimate_fluid_count(spec: model.FluidSpec, radius: float) -> int:
@@ -272,69 +327,6 @@ def _face_candidates(mesh, r: float) -> np.ndarray:
     import pyvista as pv
 
     return np.ascontiguousarray(pv.wrap(sampler.GetOutput()).points, dtype=np.float64)
-
-
-def poisson_filter(candidates: np.ndarray, radius: float) -> np.ndarray:
-    """Indices of a maximal subset with pairwise distance >= radius, taken greedily in input order
-    (earlier candidates win). Every rejected candidate lies within radius of a kept one."""
-    c = np.ascontiguousarray(candidates, dtype=np.float64)
-    if len(c) == 0:
-        return np.empty(0, dtype=np.int64)
-    cell_of, nbr = _cell_table(c, radius)
-    keep = np.zeros(len(c), dtype=np.bool_)
-    overflow = np.zeros(1, dtype=np.int64)
-    _greedy_kernel(c, cell_of, nbr, radius * radius, 16, keep, overflow)
-    if overflow[0]:
-        raise RuntimeError("poisson_filter: cell slot overflow (more than 16 separated points in a cell)")
-    return np.flatnonzero(keep)
-
-
-def _cell_table(points: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
-    """Occupied cells of size h: (cell id per point, (ncells, 27) neighbour cell ids or -1)."""
-    lo = points.min(axis=0) - h
-    ijk = np.floor((points - lo) / h).astype(np.int64)
-    dims = ijk.max(axis=0) + 2
-    key = (ijk[:, 0] * dims[1] + ijk[:, 1]) * dims[2] + ijk[:, 2]
-    uniq, inv = np.unique(key, return_inverse=True)
-    ci = np.stack([uniq // (dims[1] * dims[2]), (uniq // dims[2]) % dims[1], uniq % dims[2]], axis=1)
-    off = np.array([(a, b, c) for a in (-1, 0, 1) for b in (-1, 0, 1) for c in (-1, 0, 1)], dtype=np.int64)
-    nb_ijk = ci[:, None, :] + off[None, :, :]
-    nb_key = (nb_ijk[..., 0] * dims[1] + nb_ijk[..., 1]) * dims[2] + nb_ijk[..., 2]
-    pos = np.clip(np.searchsorted(uniq, nb_key), 0, len(uniq) - 1)
-    valid = (uniq[pos] == nb_key) & np.all((nb_ijk >= 0) & (nb_ijk < dims), axis=2)
-    return inv.ravel().astype(np.int64), np.where(valid, pos, -1).astype(np.int64)
-
-
-@nb.njit(cache=True)
-def _greedy_kernel(points, cell_of, nbr, r2, cap, keep, overflow):
-    """Serial greedy Poisson-disk selection: keep_i = no kept j < i with |x_i - x_j|² < r2."""
-    ncell = nbr.shape[0]
-    slots = np.full((ncell, cap), -1, dtype=np.int64)
-    count = np.zeros(ncell, dtype=np.int64)
-    for i in range(points.shape[0]):
-        ok = True
-        for q in range(27):
-            c = nbr[cell_of[i], q]
-            if c < 0:
-                continue
-            for s in range(count[c]):
-                j = slots[c, s]
-                dx = points[i, 0] - points[j, 0]
-                dy = points[i, 1] - points[j, 1]
-                dz = points[i, 2] - points[j, 2]
-                if dx * dx + dy * dy + dz * dz < r2:
-                    ok = False
-                    break
-            if not ok:
-                break
-        if ok:
-            c = cell_of[i]
-            if count[c] >= cap:
-                overflow[0] = 1
-                return
-            slots[c, count[c]] = i
-            count[c] += 1
-            keep[i] = True
 
 
 def _sample_general_surface(mesh, r: float) -> np.ndarray:
@@ -413,66 +405,17 @@ def remove_overlaps(fluid: np.ndarray, boundary_points: np.ndarray, min_dist: fl
     return kept, int(len(f) - np.count_nonzero(kept))
 
 
-def nearest_distance(query: np.ndarray, points: np.ndarray, cutoff: float, *, exclude_self: bool = False
-                     ) -> np.ndarray:
-    """Distance from each query point to its nearest point (inf when none is closer than cutoff).
-    exclude_self: query is points, each point's own index is skipped (nearest-neighbour spacing)."""
-    q = np.ascontiguousarray(np.asarray(query, dtype=np.float64).reshape(-1, 3))
-    p = np.ascontiguousarray(np.asarray(points, dtype=np.float64).reshape(-1, 3))
-    out = np.full(len(q), np.inf)
-    if len(q) == 0 or len(p) == 0:
-        return out
-    h = float(cutoff)
-    lo = np.minimum(p.min(axis=0), q.min(axis=0)) - h
-    ijk = np.floor((p - lo) / h).astype(np.int64)
-    dims = np.maximum(np.floor((np.maximum(p.max(axis=0), q.max(axis=0)) - lo) / h).astype(np.int64) + 2, 1)
-    key = (ijk[:, 0] * dims[1] + ijk[:, 1]) * dims[2] + ijk[:, 2]
-    order = np.argsort(key, kind="stable")
-    skey = key[order]
-    _nearest_kernel(q, p[order], order, skey, lo, h, dims, exclude_self, out)
-    return out
-
-
-@nb.njit(parallel=True, cache=True)
-def _nearest_kernel(query, sorted_pts, sorted_ids, sorted_keys, lo, h, dims, exclude_self, out):
-    """out_i = min_j |q_i − p_j| over the 27 cells around q_i, when below h (else left as is)."""
-    for i in nb.prange(query.shape[0]):
-        ci = int(math.floor((query[i, 0] - lo[0]) / h))
-        cj = int(math.floor((query[i, 1] - lo[1]) / h))
-        ck = int(math.floor((query[i, 2] - lo[2]) / h))
-        best = h * h
-        for a in range(ci - 1, ci + 2):
-            if a < 0 or a >= dims[0]:
-                continue
-            for b in range(cj - 1, cj + 2):
-                if b < 0 or b >= dims[1]:
-                    continue
-                for c in range(ck - 1, ck + 2):
-                    if c < 0 or c >= dims[2]:
-                        continue
-                    k = (a * dims[1] + b) * dims[2] + c
-                    s = np.searchsorted(sorted_keys, k)
-                    while s < sorted_keys.shape[0] and sorted_keys[s] == k:
-                        if not (exclude_self and sorted_ids[s] == i):
-                            dx = query[i, 0] - sorted_pts[s, 0]
-                            dy = query[i, 1] - sorted_pts[s, 1]
-                            dz = query[i, 2] - sorted_pts[s, 2]
-                            dd = dx * dx + dy * dy + dz * dz
-                            if dd < best:
-                                best = dd
-                        s += 1
-        if best < h * h:
-            out[i] = math.sqrt(best)
-
-
 def cache_key(kind: str, spec, radius: float) -> str:
     """The disk-cache key of a fluid's or wall's samples (sample_cache.cache_key)."""
     return sample_cache.cache_key(kind, spec, radius, SAMPLER_VERSION,
                                   _mesh_path(spec) if spec.shape != "box" else None)
 
 
-def _cached(kind: str, spec, r: float, use_cache: bool, sample) -> np.ndarray:
+def _cached(kind: str, spec, r: float, use_cache: bool, sample, extra=()) -> np.ndarray:
     _shape(spec)
     if not use_cache:
         return sample()
-    return sample_cache.cached(f"{kind}-{cache_key(kind, spec, r)}", sample)
+    key = cache_key(kind, spec, r)
+    if extra:
+        key = hashlib.sha256((key + repr(extra)).encode()).hexdigest()
+    return sample_cache.cached(f"{kind}-{key}", sample)

@@ -55,8 +55,9 @@ def sample_scene(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray, list
     from . import sampling
     r = scene.particle_radius
     xs, vs = [np.zeros((0, 3))], [np.zeros((0, 3))]
+    frame = sampling.lattice_frame(scene)   # mesh fluids share the walls' rest lattice
     for spec in scene.fluids:
-        x = sampling.fluid_positions(spec, r)
+        x = sampling.fluid_positions(spec, r, frame=frame)
         xs.append(x)
         vs.append(np.tile(np.asarray(spec.velocity, dtype=np.float64), (len(x), 1)))
     fluid_x, fluid_v = np.concatenate(xs), np.concatenate(vs)

@@ -3,10 +3,13 @@
 Tolerances are named and justified where they are declared. The runs are module-scoped
 fixtures so each simulation happens once for all the assertions on it.
 """
+import json
+
 import numpy as np
 import pytest
 
-from ipsph.scene import scene_from_dict
+from ipsph import meshes
+from ipsph.scene import load_scene, scene_from_dict
 from ipsph.simulation import Simulation, sample_scene
 
 G = 9.81
@@ -19,6 +22,18 @@ TANK_DENSITY_ERROR = 0.05e-2
 PRESSURE_SLOPE_TOL = 0.05
 # Issue 3: free fall acceleration within 0.5 % of g (fitted on velocities, method.md section 5).
 FREE_FALL_TOL = 0.005
+# Issue 16: at t = 0 every particle below the free-surface layer reads rho0 within 0.1 %: 1/60 of
+# what Akinci's volumes alone give on a flat face (+6.4 %) and 1/140 of the corners (+14.5 %);
+# the fitted walls give +-3e-5 (method.md section 1).
+REST_DENSITY_TOL = 1e-3
+# Issue 16: the free surface (mean height of the top layer + r) stays within 1.5 r of its t = 0
+# height at every frame of the 4 s tank (the 0.8 d^3 mass sank 5 r in the first second).
+SURFACE_TOL_R = 1.5
+# Issue 16: the fastest particle at any step of the 4 s tank. The fitted walls removed the corner
+# pop (27.6 m/s with Akinci's volumes and the full mass); what remains is the hydrostatic load-up
+# of a start without pressure (about 1 m/s, method.md section 1). The issue asks for 0.1 m/s: not
+# reached yet, this bound keeps the pop from coming back.
+TANK_MAX_SPEED = 1.5
 
 
 def tank_scene(method, r=0.02, end_time=4.0):
@@ -31,21 +46,28 @@ def tank_scene(method, r=0.02, end_time=4.0):
     }, name=f"tank-{method}")
 
 
+def free_surface(x, r=0.02, top_layer=14 * 14):
+    """Mean height of the top layer's worth of highest particles + r."""
+    return np.sort(x[:, 1])[-top_layer:].mean() + r
+
+
 def run_tank(method, end_time=4.0):
     scene = tank_scene(method, end_time=end_time)
     sim = Simulation(scene, *sample_scene(scene)[:3])
     lo = np.array([0.0, 0.0, 0.0])
     hi = np.array([0.6, 1.0, 0.6])
-    rec = {"err": [], "t": [], "escaped": 0, "p_fits": []}
+    rec = {"err": [], "t": [], "escaped": 0, "p_fits": [], "vmax": [], "surface": []}
 
     def on_step(s):
         rec["t"].append(s.time)
         rec["err"].append(s.density_error_mean)
+        rec["vmax"].append(s.max_speed)
         x = sim.positions
         rec["escaped"] = max(rec["escaped"], int(np.count_nonzero(np.any((x < lo) | (x > hi), axis=1))))
         if s.time > end_time - 1.0 and s.step % 5 == 0:
             rec["p_fits"].append(pressure_slope(sim, lo, hi))
-    sim.run(end_time=end_time, fps=10, on_step=on_step)
+    sim.run(end_time=end_time, fps=10, on_step=on_step,
+            on_frame=lambda sm, k: rec["surface"].append(free_surface(sm.positions)))
     rec["t"] = np.array(rec["t"])
     rec["err"] = np.array(rec["err"])
     rec["sim"] = sim
@@ -72,6 +94,51 @@ def tank(method):
     if method not in _TANKS:
         _TANKS[method] = run_tank(method)
     return _TANKS[method]
+
+
+@pytest.mark.parametrize("method", ["ipsph", "dfsph"])
+def test_tank_surface_holds_and_nothing_is_flung(method):
+    rec = tank(method)
+    r = rec["sim"].scene.particle_radius
+    drift = np.abs(np.array(rec["surface"]) - rec["surface"][0]) / r
+    assert drift.max() <= SURFACE_TOL_R, f"{method}: the surface moved {drift.max():.2f} r"
+    assert max(rec["vmax"]) <= TANK_MAX_SPEED, f"{method}: a particle reached {max(rec['vmax']):.2f} m/s"
+
+
+def tank_builds(tmp_path):
+    """The tank of tank_scene as a box fluid, a closed box mesh fluid and an imported SPlisHSPlasH scene."""
+    meshes.box_mesh((0, 0, 0), (0.6, 0.6, 0.6)).save(tmp_path / "column.vtp")
+    meshes.box_mesh((-0.5, -0.5, -0.5), (0.5, 0.5, 0.5)).save(tmp_path / "unit_box.obj")
+    base = tank_scene("dfsph")
+    mesh = scene_from_dict({
+        "simulation": {"method": "dfsph", "particle_radius": 0.02},
+        "fluid": [{"name": "column", "mesh": str(tmp_path / "column.vtp")}],
+        "boundary": [{"name": "tank", "role": "container", "box": {"min": [0, 0, 0], "max": [0.6, 1.0, 0.6]}}],
+    }, name="tank-mesh")
+    (tmp_path / "tank.json").write_text(json.dumps({
+        "Configuration": {"particleRadius": 0.02, "simulationMethod": 4},
+        "RigidBodies": [{"geometryFile": "unit_box.obj", "translation": [0.3, 0.5, 0.3], "scale": [0.6, 1.0, 0.6],
+                         "isDynamic": False, "isWall": True, "mapInvert": True}],
+        "FluidBlocks": [{"denseMode": 0, "start": [0, 0, 0], "end": [0.6, 0.6, 0.6]}]}))
+    return {"box": base, "mesh": mesh, "splishsplash": load_scene(tmp_path / "tank.json")}
+
+
+def test_tank_starts_at_rest_density_however_it_is_built(tmp_path):
+    """Full mass, and rho0 at t = 0 next to walls, along edges and in corners (issue 16), for a box
+    fluid, a mesh fluid and a SPlisHSPlasH FluidBlock: the same particles, the same densities."""
+    positions = {}
+    for name, scene in tank_builds(tmp_path).items():
+        sim = Simulation(scene, *sample_scene(scene)[:3])
+        x, rho = sim.positions, sim.densities / RHO0
+        d = 2 * scene.particle_radius
+        assert sim.masses.sum() == pytest.approx(RHO0 * sim.n_fluid * d**3, rel=0.01), name
+        below_surface = x[:, 1] < x[:, 1].max() - 0.5 * d
+        assert np.abs(rho[below_surface] - 1).max() <= REST_DENSITY_TOL, \
+            f"{name}: rest density {rho[below_surface].min():.5f}..{rho[below_surface].max():.5f} rho0"
+        positions[name] = x[np.lexsort(x.T)]
+    assert positions["box"].shape == (14**3, 3)
+    for name in ("mesh", "splishsplash"):
+        np.testing.assert_allclose(positions[name], positions["box"], atol=1e-9, err_msg=name)
 
 
 @pytest.mark.parametrize("method", ["ipsph", "dfsph", "pf"])
