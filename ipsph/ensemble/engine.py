@@ -180,7 +180,8 @@ def start_local_cluster(workers: int, threads: int, dashboard_address: str):
     from distributed import LocalCluster
     return LocalCluster(n_workers=workers, threads_per_worker=threads, processes=True, host="127.0.0.1",
                         dashboard_address=dashboard_address, worker_dashboard_address=None,
-                        resources={mem.RESOURCE: 1}, memory_limit=0, silence_logs=logging.ERROR)
+                        resources={mem.RESOURCE: 1}, memory_limit=0, silence_logs=logging.ERROR,
+                        preload=["ipsph.ensemble._worker_setup"])
 
 
 def check_shared_folder(client, out: Path) -> None:
@@ -231,7 +232,7 @@ class Progress:
         s = int(round(left / self.slots))
         return f"ETA {s // 3600}:{s // 60 % 60:02d}:{s % 60:02d}"
 
-    def show(self, recs: list[dict]) -> None:
+    def show(self, recs: list[dict], eta: bool = True) -> None:
         c = records.counts(recs)
         pend = c.get("pending", 0) + c.get("running", 0)
         line = (f"{c.get('completed', 0)}/{self.total} done, {c.get('running', 0)} running, "
@@ -239,7 +240,7 @@ class Progress:
                 + f", {c.get('pending', 0)} waiting")
         now = time.time()
         if line != self.last_line or now - self.last_print > 30:
-            tail = f"; {self.eta(pend)}" if pend else ""
+            tail = f"; {self.eta(pend)}" if pend and eta else ""
             _log(line + tail + (f"; dashboard {self.dashboard}" if self.dashboard else ""), self.opts)
             self.last_line, self.last_print = line, now
 
@@ -373,7 +374,7 @@ def _submit_and_wait(client, sweep, out_abs, todo, by_name, recs, opts, exclusiv
         if r["status"] == "running":
             r["status"] = "pending"
     save()
-    progress.show(recs)
+    progress.show(recs, eta=not interrupted)
     failed = [r for r in recs if r["status"] == "failed"]
     for r in failed:
         _log(f"member {r['name']} failed (exit {r['exit_code']}): {r['reason']}", opts)

@@ -155,7 +155,7 @@ def _run_member(job: dict) -> dict:
         if code == 0:
             status, reason = "completed", None
         elif code == 130:
-            status, reason = "interrupted", "stopped (SIGTERM) after a final frame and a checkpoint"
+            status, reason = "interrupted", "stopped by a signal after a final frame and a checkpoint; --resume continues it"
         else:
             status = "failed"
             reason = info.get("error") or _error_line(tail) or (
@@ -211,6 +211,6 @@ def _child(job: dict, folder: Path, lock, threads: int, mode: str | None, attemp
 def _record(job, status, code, reason, info, threads, host, attempt, wall, waited, resumed) -> dict:
     return {"name": job["name"], "status": status, "exit_code": code, "reason": reason,
             "wall_seconds": info.get("wall_seconds") if status == "completed" and not wall else wall,
-            "run_wall_seconds": info.get("wall_seconds"), "threads": threads, "host": host,
+            "run_wall_seconds": info.get("wall_seconds"), "threads": threads, "host": host, "worker_pid": os.getpid(),
             "attempts": attempt, "resumed": resumed, "lock_wait_seconds": waited,
             "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
