@@ -114,3 +114,10 @@ def test_local_layout_from_the_machine(monkeypatch):
     assert engine.local_layout(3, 3) == (3, 3)
     with pytest.raises(ValueError, match="--workers 0"):
         engine.local_layout(0, None)
+
+
+def test_docs_summary_table_is_generated_from_the_columns():
+    from ipsph.ensemble import records
+    page = (Path(__file__).resolve().parents[1] / "docs" / "sweeps.md").read_text(encoding="utf-8")
+    table = page.split("<!-- summary-columns: generated -->\n", 1)[1].split("<!-- /summary-columns -->", 1)[0]
+    assert table == records.summary_columns_markdown(), "regenerate it with `python -m ipsph.ensemble`"

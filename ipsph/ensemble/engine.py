@@ -250,6 +250,7 @@ def run_sweep(sweep_file: str | Path, opts: SweepOptions) -> tuple[int, list[dic
     """Run a sweep; returns (exit code, member records). Input errors raise before anything starts.
 
     Exit code: 0 every member completed, 1 some member failed (sweep.json says why), 130 stopped by Ctrl-C."""
+    t_begin = time.perf_counter()
     out = Path(opts.out).expanduser()
     sweep = load_sweep(sweep_file, opts.extra_set)
     if opts.scheduler is None:
@@ -270,8 +271,9 @@ def run_sweep(sweep_file: str | Path, opts: SweepOptions) -> tuple[int, list[dic
     out_abs = out.resolve()
     varied = [k for k, _ in sweep.grid] + [k for k, _ in sweep.zipped]
     params = {r["name"]: r["parameters"] for r in recs}
+    timings = {"validate": time.perf_counter() - t_begin}  # seconds per phase (ipsph bench --sweep reads them)
     info = {**sweep.as_dict(), "out": str(out_abs), "members_total": len(recs),
-            "started": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
+            "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "timings_s": timings}
     by_name = {r["name"]: r for r in recs}
 
     def save() -> None:
@@ -282,6 +284,7 @@ def run_sweep(sweep_file: str | Path, opts: SweepOptions) -> tuple[int, list[dic
     from distributed import Client
     cluster = None
     sweep_id = uuid.uuid4().hex[:12]
+    t0 = time.perf_counter()
     if opts.scheduler is None:
         _log(f"{len(todo)} of {len(recs)} members to run; starting a LocalCluster on 127.0.0.1: {n_workers} "
              f"workers x {n_threads} threads", opts)
@@ -304,7 +307,10 @@ def run_sweep(sweep_file: str | Path, opts: SweepOptions) -> tuple[int, list[dic
             except TimeoutError as exc:
                 raise InputError(f"--scheduler {opts.scheduler}: no worker joined within {opts.wait_workers:.0f} s")\
                     from exc
+        timings["cluster_start"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
         check_shared_folder(client, out)
+        timings["shared_folder_check"] = time.perf_counter() - t0
         workers = client.scheduler_info(n_workers=-1)["workers"]
         exclusive = not all(mem.RESOURCE in (w.get("resources") or {}) for w in workers.values())
         if exclusive:
@@ -314,8 +320,11 @@ def run_sweep(sweep_file: str | Path, opts: SweepOptions) -> tuple[int, list[dic
         info["scheduler"]["worker_threads"] = sorted({int(w.get("nthreads", 0)) for w in workers.values()})
         dash = _dashboard(client)
         info["dashboard"] = dash
+        t0 = time.perf_counter()
         code = _submit_and_wait(client, sweep, out_abs, todo, by_name, recs, opts, exclusive, save, dash, sweep_id,
                                 len(workers))
+        timings["members"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
     finally:
         try:
             client.close()
@@ -324,6 +333,9 @@ def run_sweep(sweep_file: str | Path, opts: SweepOptions) -> tuple[int, list[dic
                 cluster.close()
         for r in recs:  # a member stopped by a dying worker finishes its checkpoint on its own: wait for it
             _wait_child_gone(out / r["name"])
+    timings["close"] = time.perf_counter() - t0
+    timings["total"] = time.perf_counter() - t_begin
+    save()
     return code, recs
 
 

@@ -28,7 +28,7 @@ FORMAT = 1
 # (column, what it is): the one place summary.csv's columns are declared (docs/sweeps.md lists them)
 SUMMARY_COLUMNS = (
     ("member", "member folder name"),
-    ("status", "completed | failed | interrupted | pending"),
+    ("status", "completed, failed, interrupted or pending"),
     ("exit_code", "exit code of the member's `ipsph run`"),
     ("method", "simulation.method"),
     ("particle_radius", "simulation.particle_radius [m]"),
@@ -143,3 +143,10 @@ def plot_folders(dirs: list[Path], output: Path | None) -> tuple[list[Path], Pat
         if target is None and len(dirs) == 1:
             target = d / "plots"
     return expanded, target
+
+
+def summary_columns_markdown() -> str:
+    """The summary.csv column table of docs/sweeps.md (generated: `python -m ipsph.ensemble`)."""
+    rows = [f"| `{c}` | {doc} |" for c, doc in SUMMARY_COLUMNS]
+    rows.append("| *one per varied key* | its value for the member (`simulation.method`, ...), lists as JSON |")
+    return "| column | meaning |\n|---|---|\n" + "\n".join(rows) + "\n"
