@@ -283,3 +283,49 @@ def test_ctrl_c_stops_cleanly_and_resume_finishes(sweep_file, references, tmp_pa
         assert recs[n]["resumed"] and len(run_json(out / n)["resumed"]) == 1
     for n in NAMES:
         assert_same_frames(references[n], out / n, max_extra=1 if n in stopped else 0)
+
+
+def test_joins_an_existing_scheduler_and_uses_its_workers_threads(sweep_file, tmp_path):
+    """--scheduler: a cluster the sweep did not start (here a 1-worker x 2-thread LocalCluster whose
+    worker declares no ipsph_member resource): each member gets the worker's 2 threads, one at a time."""
+    from distributed import LocalCluster
+    f = sweep_file.with_name("two.toml")
+    f.write_text('scene = "dam.toml"\n[set]\n"simulation.particle_radius" = 0.04\n"simulation.end_time" = 0.08\n'
+                 '"render.enabled" = false\n[grid]\n"simulation.method" = ["pf", "dfsph"]\n')
+    with LocalCluster(n_workers=1, threads_per_worker=2, host="127.0.0.1", dashboard_address=None,
+                      memory_limit=0) as cluster:
+        out = tmp_path / "out"
+        with pytest.raises(ValueError, match="--workers / --threads-per-worker size a LocalCluster"):
+            ipsph.sweep(f, out, scheduler=cluster.scheduler_address, workers=2)
+        recs = ipsph.sweep(f, out, scheduler=cluster.scheduler_address)
+        assert len(cluster.scheduler_info["workers"]) == 1  # still up: the sweep leaves a cluster it joined
+    assert [r["status"] for r in recs] == ["completed", "completed"]
+    assert all(r["threads"] == 2 and run_json(out / r["name"])["threads"] == 2 for r in recs)
+    saved = json.loads((out / "sweep.json").read_text())
+    assert saved["scheduler"] == {"kind": "external", "address": cluster.scheduler_address, "worker_threads": [2]}
+    # one member at a time on the one worker: their runs do not overlap
+    (a, b) = [run_json(out / r["name"]) for r in recs]
+    first, second = sorted((a, b), key=lambda i: i["started"])
+    assert first["finished"] <= second["started"]
+
+
+class FakeClient:
+    def __init__(self, answers):
+        self.answers = answers
+
+    def run(self, fn, probe, token, on_error):
+        # each "worker" answers as member.probe_folder would on its side of the filesystem
+        return {addr: (fn(probe, token) if a == "real" else a) for addr, a in self.answers.items()}
+
+
+def test_shared_folder_check_names_a_worker_that_cannot_see_out(tmp_path):
+    engine.check_shared_folder(FakeClient({"tcp://a:1": "real", "tcp://b:1": "real"}), tmp_path)
+    assert list(tmp_path.iterdir()) == []  # the probe files are gone
+    with pytest.raises(ValueError) as e:
+        engine.check_shared_folder(FakeClient({"tcp://a:1": "real", "tcp://b:1": "FileNotFoundError: No such file"}),
+                                   tmp_path)
+    msg = str(e.value)
+    assert "1 of 2 workers cannot use" in msg and "tcp://b:1" in msg and "shares" in msg and "\n" not in msg
+    assert member.probe_folder(str(tmp_path / "missing"), "t").startswith("FileNotFoundError")
+    (tmp_path / "p").write_text("other")
+    assert "something else" in member.probe_folder(str(tmp_path / "p"), "t")

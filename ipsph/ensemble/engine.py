@@ -203,11 +203,15 @@ def check_shared_folder(client, out: Path) -> None:
                           f"at the same path")
 
 
-def _dashboard(client) -> str | None:
-    try:
-        info = client.scheduler_info(n_workers=0)
+def _scheduler_info(client, n_workers: int) -> dict:
+    try:  # distributed >= 2025.1 lists only 5 workers unless told
+        return client.scheduler_info(n_workers=n_workers)
     except TypeError:
-        info = client.scheduler_info()
+        return client.scheduler_info()
+
+
+def _dashboard(client) -> str | None:
+    info = _scheduler_info(client, 0)
     if "dashboard" not in info.get("services", {}):
         return None
     return client.dashboard_link
@@ -311,7 +315,7 @@ def run_sweep(sweep_file: str | Path, opts: SweepOptions) -> tuple[int, list[dic
         t0 = time.perf_counter()
         check_shared_folder(client, out)
         timings["shared_folder_check"] = time.perf_counter() - t0
-        workers = client.scheduler_info(n_workers=-1)["workers"]
+        workers = _scheduler_info(client, -1)["workers"]
         exclusive = not all(mem.RESOURCE in (w.get("resources") or {}) for w in workers.values())
         if exclusive:
             _log(f"note: the workers do not declare the resource {mem.RESOURCE}=1 (start them with "
