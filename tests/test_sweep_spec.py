@@ -121,3 +121,21 @@ def test_docs_summary_table_is_generated_from_the_columns():
     page = (Path(__file__).resolve().parents[1] / "docs" / "sweeps.md").read_text(encoding="utf-8")
     table = page.split("<!-- summary-columns: generated -->\n", 1)[1].split("<!-- /summary-columns -->", 1)[0]
     assert table == records.summary_columns_markdown(), "regenerate it with `python -m ipsph.ensemble`"
+
+
+def test_bench_sweep_table_leaves_loaded_repeats_out():
+    from ipsph.benchmark.sweep_bench import table
+
+    def row(wall, seq, loaded):
+        return {"sweep_wall": wall, "sequential_wall": seq, "ratio": seq / wall, "makespan": wall - 4.0,
+                "overhead_per_member": 1.0, "dispatch_per_member": 0.05, "loaded": loaded,
+                "sweep_others_cores": 0.1, "sequential_others_cores": 0.1,
+                "timings": {"cluster_start": 3.0, "members": wall - 3.5, "close": 0.5}}
+    result = {"end_time": 1.0, "members": ["a", "b", "c", "d"],
+              "rows": [row(10.0, 20.0, False), row(12.0, 18.0, False), row(100.0, 20.0, True)]}
+    text = table(result, markdown=False, max_load=0.5)
+    import re
+    lines = dict(re.split(r"\s{2,}", ln.strip(), maxsplit=1) for ln in text.splitlines()[1:])
+    assert float(lines["sweep wall, 2 workers x 1 thread [s]"]) == 11.0  # the loaded 100 s repeat is left out
+    assert float(lines["ratio sequential / sweep"]) == pytest.approx((2.0 + 1.5) / 2, abs=0.005)
+    assert lines["repeats counted / run"].strip() == "2 / 3"

@@ -297,6 +297,9 @@ def reprint(path: Path, markdown: bool, max_load: float) -> str:
         texts.append(h("scaling (dam break)") + report.scaling_table(saved["scaling"], markdown, max_load))
     if saved.get("table1"):
         texts.append(h("Table 1") + report.table1(report.summarise(saved["table1"], max_load), markdown))
+    if saved.get("sweep"):
+        from .sweep_bench import table as sweep_table
+        texts.append(h("sweep on a LocalCluster") + sweep_table(saved["sweep"], markdown, max_load))
     if saved.get("runs"):
         texts.append(report.scene_tables(report.summarise(saved["runs"], max_load), markdown, max_load))
     m = saved.get("machine", {})
