@@ -31,7 +31,7 @@ from ipsph.io import RUN_JSON, RUN_PVD, vtu
 from ipsph.io.pvd import PvdSeries
 from ipsph.scene import default_scene_path
 
-END = 0.6  # 75 steps at dt_max = 8 ms: long enough to stop a member mid-run, a few seconds per member
+END = 1.0  # 125 steps at dt_max = 8 ms: over 1 s of stepping left to stop a member in, a few seconds per member
 SWEEP = f"""
 scene = "dam.toml"
 [set]
@@ -206,7 +206,7 @@ def start_sweep(sweep_file: Path, out: Path, *extra: str) -> subprocess.Popen:
 
 
 def wait_mid_run(out: Path, proc: subprocess.Popen, running: int, timeout: float = 180.0) -> list[str]:
-    """Names of the first `running` members seen at least 15 steps into their run (not finished)."""
+    """Names of the first `running` members seen at least 5 steps into their run (not finished)."""
     t0 = time.time()
     while time.time() - t0 < timeout:
         assert proc.poll() is None, proc.stderr.read()
@@ -217,7 +217,7 @@ def wait_mid_run(out: Path, proc: subprocess.Popen, running: int, timeout: float
                 done = run_json(out / n)["status"] != "running"
             except (OSError, ValueError, KeyError):
                 continue
-            if 15 <= rows and not done:
+            if 5 <= rows and not done:
                 mid.append(n)
         if len(mid) >= running:
             return mid
