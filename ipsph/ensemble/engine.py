@@ -379,8 +379,10 @@ def _submit_and_wait(client, sweep, out_abs, todo, by_name, recs, opts, exclusiv
             client.run(mem.stop_members, sweep_id, on_error="ignore")
             done, pending = wait(list(pending), timeout=300)
             _collect(done, futures, by_name, progress)
-        except KeyboardInterrupt:
-            pass
+        except (KeyboardInterrupt, TimeoutError):  # a second Ctrl-C, or members that would not stop
+            done = {f for f in pending if f.done()}
+            _collect(done, futures, by_name, progress)
+            pending = pending - done
         for f in pending:
             name = futures[f]
             if by_name[name]["status"] == "running":
