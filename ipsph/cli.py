@@ -1,4 +1,4 @@
-"""Command line: `ipsph run | render | plot | sweep | bench` (also `python -m ipsph`).
+"""Command line: `ipsph run | render | surface | plot | sweep | bench` (also `python -m ipsph`).
 
 User errors print one line on stderr and exit 2; numerical failures exit 3; interrupts 130.
 """
@@ -42,6 +42,8 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override any scene parameter, e.g. --set solver.pf.stiffness=25000 (repeatable)")
     r.add_argument("--no-render", action="store_true", help="skip the PNG renders")
+    r.add_argument("--surface", action="store_true",
+                   help="also write the fluid's surface mesh per frame, surfaces/*.vtp (sets output.surface)")
     r.add_argument("--threads", type=int, metavar="N", help="worker threads (default: all cores)")
     r.add_argument("--overwrite", action="store_true", help="replace an earlier run in the output folder")
     r.add_argument("--resume", action="store_true", help="continue the run in the output folder from its checkpoint")
@@ -59,6 +61,19 @@ def _parser() -> argparse.ArgumentParser:
     rd.add_argument("--view", choices=("front", "back", "side", "top", "iso"),
                     help="named camera view (replaces a camera stored in the run's scene)")
     rd.add_argument("--size", type=int, nargs=2, metavar=("W", "H"), help="image size in pixels")
+    rd.add_argument("--mode", choices=("particles", "surface"),
+                    help="draw the particles or the surface meshes (reconstructed first where missing); "
+                         "default: the run's render.mode")
+
+    sf = sub.add_parser("surface", help="surface meshes of a finished or running output folder (skips those written)",
+                        description="Reconstruct the fluid's surface for every frame of OUT that has none yet, "
+                                    "with the run's [surface] settings; .vtp surfaces are listed in run.pvd.")
+    sf.add_argument("out", type=Path, help="output folder of `ipsph run`")
+    sf.add_argument("--format", choices=("vtp", "obj", "ply"), default="vtp",
+                    help="vtp (ParaView; default), obj or ply (Houdini, Blender: ply keeps normals, velocity, speed)")
+    sf.add_argument("--set", action="append", default=[], metavar="surface.KEY=VALUE",
+                    help="change a [surface] setting, e.g. --set surface.cube_size=0.5 (repeatable)")
+    sf.add_argument("--threads", type=int, metavar="N", help="reconstruction threads (default: all cores)")
 
     pl = sub.add_parser("plot", help="plot density/divergence error, iterations and timings of one or more runs")
     pl.add_argument("out", type=Path, nargs="+", help="output folders (several are overlaid)")
@@ -87,6 +102,8 @@ def _run(args) -> int:
         overrides.append(f"output.fps={args.fps}")
     if args.every_step:
         overrides.append("output.every_step=true")
+    if args.surface:
+        overrides.append("output.surface=true")
     scene = load_scene(args.scene if args.scene is not None else default_scene_path(), overrides)
     out = args.output if args.output is not None else scene.output.folder
     opts = runner.RunOptions(out_dir=out, render=not args.no_render, overwrite=args.overwrite,
@@ -111,8 +128,17 @@ def _render(args) -> int:
     if args.size:
         over["width"], over["height"] = args.size
     paths = render_output(args.out, speed_range=tuple(args.speed_range) if args.speed_range else None,
-                          config_overrides=over or None, video=args.video, fps=args.fps)
+                          config_overrides=over or None, video=args.video, fps=args.fps, mode=args.mode)
     print(f"ipsph: wrote {len(paths)} files under {args.out}", file=sys.stderr)
+    return 0
+
+
+def _surface(args) -> int:
+    from .surface import surface_output
+    res = surface_output(args.out, fmt=args.format, overrides=args.set, threads=args.threads)
+    print(f"ipsph: wrote {len(res['written'])} {args.format} surfaces under {args.out / 'surfaces'} "
+          f"({res['skipped']} already there" + (f", {len(res['failed'])} frames without a surface: "
+          f"{', '.join(str(i) for i in sorted(res['failed']))}" if res["failed"] else "") + ")", file=sys.stderr)
     return 0
 
 
@@ -136,6 +162,8 @@ def main(argv: list[str] | None = None) -> int:
             return _run(args)
         if args.command == "render":
             return _render(args)
+        if args.command == "surface":
+            return _surface(args)
         if args.command == "plot":
             return _plot(args)
         if args.command == "sweep":

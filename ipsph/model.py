@@ -98,6 +98,7 @@ class OutputConfig:
     every_step: bool = False
     fields: tuple[str, ...] = ("velocity", "density", "pressure", "mass", "id")
     checkpoint_interval: float | None = None  # simulated seconds between checkpoints
+    surface: bool = False                     # surfaces/surface_%06d.vtp per frame (ipsph.surface)
 
 
 @dataclass(frozen=True)
@@ -110,6 +111,18 @@ class RenderConfig:
     focal_point: Vec3 | None = None
     view_up: Vec3 | None = None
     speed_range: tuple[float, float] | None = None  # m/s; None: from the run
+    mode: str = "particles"             # "particles" | "surface" (the reconstructed surface mesh)
+
+
+@dataclass(frozen=True)
+class SurfaceConfig:
+    """Surface reconstruction (splashsurf through ipsph.surface); lengths in multiples of r."""
+    smoothing_length: float = 2.0       # kernel smoothing length h / r (support 2h)
+    cube_size: float = 1.0              # marching-cubes cell edge / r: the cost knob
+    iso_threshold: float = 0.6          # colour-field level of the surface (fraction of rest density)
+    mesh_smoothing_iterations: int = 10  # weighted Laplacian smoothing of the vertices
+    normal_smoothing_iterations: int = 10
+    decimate: bool = False              # barnacle decimation + marching-cubes cleanup
 
 
 @dataclass(frozen=True)
@@ -128,5 +141,6 @@ class Scene:
     boundaries: tuple[BoundarySpec, ...] = ()
     output: OutputConfig = OutputConfig()
     render: RenderConfig = RenderConfig()
+    surface: SurfaceConfig = SurfaceConfig()
     source: Path | None = None          # the scene file, if any
     warnings: tuple[str, ...] = field(default=(), compare=False)

@@ -314,6 +314,8 @@ class FrameRenderer:
         for i, (r, g, b) in enumerate(self._lut_rgb):
             lut.SetTableValue(i, r, g, b, 1.0)
         lut.SetTableRange(lo, hi)
+        self._lut = lut
+        self._mesh_actor = None  # render.mode = "surface": the fluid's surface mesh (surface_image)
         self._poly = vtkPolyData()
         mapper = vtkOpenGLPointGaussianMapper()
         mapper.SetInputData(self._poly)
@@ -425,6 +427,51 @@ class FrameRenderer:
                  else np.zeros(len(pts)))
         label = "" if time is None else f"t = {time:.3f} s"
         return self._splat_frame(pts, speed, label) if self.engine == "splat" else self._vtk_frame(pts, speed, label)
+
+    def surface_image(self, mesh, *, time: float | None = None) -> np.ndarray:
+        """One frame of the fluid's surface mesh (render.mode = "surface"; vtkPolyData with "speed" on the
+        vertices, as ipsph.surface writes it, or None for a frame without one) drawn through VTK:
+        smooth-shaded, coloured by speed over the particle frames' colour map and range, behind the same
+        translucent walls, colour bar, title and camera."""
+        from vtkmodules.vtkCommonDataModel import vtkPolyData
+        from vtkmodules.vtkRenderingCore import vtkActor, vtkPolyDataMapper
+
+        if self._mesh_actor is None:
+            mapper = vtkPolyDataMapper()
+            mapper.SetLookupTable(self._lut)
+            mapper.SetScalarRange(*self.speed_range)
+            mapper.UseLookupTableScalarRangeOff()
+            mapper.InterpolateScalarsBeforeMappingOn()  # colours follow the speed across a triangle
+            mapper.SetScalarModeToUsePointFieldData()
+            mapper.SelectColorArray("speed")
+            actor = vtkActor()
+            actor.SetMapper(mapper)
+            prop = actor.GetProperty()
+            prop.SetInterpolationToGouraud()  # with the mesh's smoothed normals
+            prop.SetColor(*_rgb(SPEED_COLOURS[2]))
+            prop.SetAmbient(0.08)
+            prop.SetDiffuse(0.85)
+            prop.SetSpecular(0.35)        # a wet highlight
+            prop.SetSpecularPower(40.0)
+            self.renderer.AddActor(actor)
+            self._mesh_actor = actor
+        mesh = mesh if mesh is not None else vtkPolyData()
+        mapper = self._mesh_actor.GetMapper()
+        mapper.SetInputData(mesh)
+        mapper.SetScalarVisibility(mesh.GetPointData().GetArray("speed") is not None)
+        self._actor.SetVisibility(False)
+        self._mesh_actor.SetVisibility(True)
+        self._time_text.SetInput("" if time is None else f"t = {time:.3f} s")
+        try:
+            return self._grab()
+        finally:  # the particle engines' state as it was
+            self._mesh_actor.SetVisibility(False)
+            self._actor.SetVisibility(True)
+            self._time_text.SetInput("")
+
+    def render_surface(self, mesh, out_png, *, time: float | None = None) -> Path:
+        """Render one surface frame to `out_png`; return its path."""
+        return save_png(self.surface_image(mesh, time=time), out_png)
 
     def _vtk_frame(self, pts: np.ndarray, speed: np.ndarray, label: str) -> np.ndarray:
         """The whole frame through VTK (sprites by vtkPointGaussianMapper): the reference the splat
@@ -694,12 +741,14 @@ def _speed_range_for(out: Path, run: dict, frames: list[tuple[float, str]], give
 
 def render_output(out_dir, *, speed_range=None, config_overrides: dict | None = None,
                   video: str | None = None, fps: float | None = None,
-                  frames: slice | None = None, progress=None) -> list[Path]:
+                  frames: slice | None = None, progress=None, mode: str | None = None) -> list[Path]:
     """Render every frame of a finished or still-running output folder to OUT/renders/*.png.
 
     Reads run.json (render settings, radius, bounds), run.pvd (frames written so far) and
     boundary_surface.vtp. Colour range: `speed_range`, else max of stats.csv `max_speed`, else
     the frames' data. `video` = "mp4" | "gif" also writes OUT/video.<ext>. Returns written paths.
+    `mode` = "particles" | "surface" (default: the run's render.mode): "surface" renders
+    OUT/surfaces/surface_NNNNNN.vtp, reconstructing first the frames that have none (`ipsph surface`).
     """
     from .io import BOUNDARY_SURFACE, RENDERS_DIR, RUN_JSON, RUN_PVD
     from .io.provenance import read_run_json
@@ -714,6 +763,12 @@ def render_output(out_dir, *, speed_range=None, config_overrides: dict | None = 
         raise ConfigError(f"video = {video!r} is not a video format; allowed: mp4, gif")
     run = read_run_json(out / RUN_JSON) if (out / RUN_JSON).is_file() else {}
     config = _render_config(run, config_overrides)
+    mode = mode or config.mode
+    if mode not in ("particles", "surface"):
+        raise ConfigError(f"render mode {mode!r} is not one of particles, surface")
+    if mode == "surface":
+        from .surface import surface_output
+        surface_output(out)  # the frames without a surface yet (one warning line per failed frame)
     series = PvdSeries.load(out / RUN_PVD)
     todo = list(enumerate(series.frames))
     if frames is not None:
@@ -743,9 +798,12 @@ def render_output(out_dir, *, speed_range=None, config_overrides: dict | None = 
     pngs: list[Path] = []
     with FrameRenderer(config, bounds, radius, rng, surface, title=title) as r:
         for k, (i, (t, f)) in enumerate(todo):
-            pts, fields, _ = read_particles(out / f)
             png = out / RENDERS_DIR / f"frame_{_frame_index(f, i):06d}.png"
-            r.render(pts, fields.get("velocity"), png, time=t)
+            if mode == "surface":
+                r.render_surface(read_surface(out / series.surfaces[t]) if t in series.surfaces else None, png, time=t)
+            else:
+                pts, fields, _ = read_particles(out / f)
+                r.render(pts, fields.get("velocity"), png, time=t)
             pngs.append(png)
             if progress is not None:
                 progress(k + 1, len(todo))

@@ -65,8 +65,12 @@ def _worker(jobs, results):
                 job = jobs.get()
                 if job is None:
                     break
-                points, velocities, png, time = job
-                img = renderer.image(points, velocities, time=time)
+                if isinstance(job[0], str):  # render.mode = "surface": the frame's mesh from surfaces/
+                    _, vtp, png, time = job
+                    img = renderer.surface_image(read_surface(vtp), time=time)
+                else:
+                    points, velocities, png, time = job
+                    img = renderer.image(points, velocities, time=time)
                 if encoding is not None:
                     encoding.result()  # one frame in the writer at a time; re-raises its error
                 encoding = writer.submit(write, img, png)
@@ -157,6 +161,14 @@ class BackgroundRenderer:
                 return False
             _time.sleep(0.02)
         self._jobs.put(job)
+        self.submitted += 1
+        return True
+
+    def submit_surface(self, vtp: Path, png: Path, time: float) -> bool:
+        """Queue the render of a surface mesh the surface process wrote (render.mode = "surface")."""
+        if not self.alive:
+            return False
+        self._jobs.put(("surface", str(vtp), Path(png), float(time)))
         self.submitted += 1
         return True
 

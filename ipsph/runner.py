@@ -49,6 +49,7 @@ class RunOptions:
     threads: int | None = None
     max_particles: int | None = None
     progress: bool | None = None   # None: only on a TTY
+    surface: bool | None = None    # None: the scene's output.surface (or render.mode = "surface")
 
 
 # -- checks before any allocation ------------------------------------------------------------------
@@ -72,7 +73,7 @@ def check_output_folder(out: Path, overwrite: bool, resume: bool) -> None:
         raise OutputError(f"output folder {out} (resolved {out.resolve()}) is not writable: "
                           f"{exc.strerror or exc}") from exc
     if overwrite and not resume:
-        for name in (out_io.FRAMES_DIR, out_io.RENDERS_DIR, out_io.PLOTS_DIR):
+        for name in (out_io.FRAMES_DIR, out_io.RENDERS_DIR, out_io.PLOTS_DIR, out_io.SURFACES_DIR):
             shutil.rmtree(out / name, ignore_errors=True)
         for name in (out_io.RUN_PVD, out_io.BOUNDARY_VTU, out_io.BOUNDARY_SURFACE, out_io.STATS_CSV,
                      out_io.RUN_JSON, "checkpoint.npz"):
@@ -177,7 +178,7 @@ class OutputFolder:
     """
 
     def __init__(self, out: Path, sim: Simulation, scene: Scene, info: dict, renderer, progress: bool,
-                 resume: ckpt.Checkpoint | None = None):
+                 resume: ckpt.Checkpoint | None = None, surfacer=None):
         self.out, self.sim, self.scene, self.info = out, sim, scene, info
         self.fields = scene.output.fields
         self.checkpoint_interval = scene.output.checkpoint_interval
@@ -205,6 +206,12 @@ class OutputFolder:
                                                   truncate_after_step=resume.steps)
         self.surface = self._write_surface()
         self.renderer = self._configure_renderer(renderer) if renderer is not None else None
+        self.surfacer = surfacer  # surfaces/*.vtp beside the solver (ipsph.surface_worker)
+        if surfacer is not None:
+            from .surface import container_bounds
+            clip = container_bounds(scene.boundaries)
+            surfacer.configure(out, scene.particle_radius, scene.density0, scene.surface, clip)
+            self.info["surface"] = {"enabled": True, **_asdict(scene.surface), "clip_bounds": clip}
         self.progress = progress
         self.t_start = time.perf_counter()
         self.steps_start = sim.steps
@@ -215,12 +222,14 @@ class OutputFolder:
     def _delete_frames_from(self, first: int) -> None:
         """Remove frame files (and their renders) numbered `first` and later: a resumed run rewrites them.
         Temporary files a killed run left behind go too (nothing references them)."""
-        for folder, pattern in ((out_io.FRAMES_DIR, "fluid_*.vtu"), (out_io.RENDERS_DIR, "frame_*.png")):
+        for folder, pattern in ((out_io.FRAMES_DIR, "fluid_*.vtu"), (out_io.RENDERS_DIR, "frame_*.png"),
+                                (out_io.SURFACES_DIR, "surface_*.*")):
             for f in (self.out / folder).glob(pattern):
                 index = f.stem.rsplit("_", 1)[-1]
                 if index.isdigit() and int(index) >= first:
                     f.unlink(missing_ok=True)
-        for folder in (self.out, self.out / out_io.FRAMES_DIR, self.out / out_io.RENDERS_DIR):
+        for folder in (self.out, self.out / out_io.FRAMES_DIR, self.out / out_io.RENDERS_DIR,
+                       self.out / out_io.SURFACES_DIR):
             for f in folder.glob(".*.tmp"):
                 f.unlink(missing_ok=True)
 
@@ -272,10 +281,13 @@ class OutputFolder:
                          "mass": lambda: sim.masses.astype(np.float32),
                          "id": lambda: sim.ids}[f]()
         out_io.vtu.write_particles(self.out / name, sim.positions.astype(np.float32), fields, sim.time)
+        self._surfaces_done()  # listed by the same .pvd rewrite as the frame
         self.pvd.add(sim.time, name)
         t1 = time.perf_counter()
         self.write_seconds += t1 - t0
-        if self.renderer is not None:
+        if self.surfacer is not None:  # after the frame is on disk; never waits for the surface process
+            self.surfacer.submit(self.frames, sim.time, sim.positions, sim.velocities, _warn)
+        if self.renderer is not None and self.scene.render.mode != "surface":
             png = self.out / out_io.RENDERS_DIR / f"frame_{self.frames:06d}.png"
             if not self.renderer.submit(sim.positions, sim.velocities, png, sim.time):
                 self._render_failed()
@@ -309,6 +321,25 @@ class OutputFolder:
         if _STOP["signal"]:
             raise Interrupted()
 
+    def _surfaces_done(self) -> bool:
+        """List the surfaces the surface process finished in run.pvd (and render them in surface mode)."""
+        done = self.surfacer.collect(_warn) if self.surfacer is not None else []
+        for index, t, name in done:
+            self.pvd.add_surface(t, name)
+            if self.renderer is not None and self.scene.render.mode == "surface":
+                png = self.out / out_io.RENDERS_DIR / f"frame_{index:06d}.png"
+                if not self.renderer.submit_surface(self.out / name, png, t):
+                    self._render_failed()
+        return bool(done)
+
+    def _close_surfaces(self) -> None:
+        """Wait for the last surfaces (Ctrl-C skips them), list them, say which frames have none."""
+        self.surfacer.finish(self.out, self.frames, _warn)
+        if self._surfaces_done():
+            self.pvd.write()
+        self.info["surface"] = {**self.info.get("surface", {}), **self.surfacer.summary()}
+        self.surfacer = None
+
     def _render_failed(self) -> None:
         why = self.renderer.error or "the render process stopped"
         if self.renderer.ready:
@@ -323,6 +354,8 @@ class OutputFolder:
         if self.progress:
             sys.stderr.write("\n")
         self.stats.close()
+        if self.surfacer is not None:  # first: in surface mode its last surfaces still go to the renderer
+            self._close_surfaces()
         if self.renderer is not None:
             t0 = time.perf_counter()
             try:
@@ -349,6 +382,10 @@ def _on_signal(signum, _frame):
     _STOP["signal"] = signum
 
 
+def _warn(msg: str) -> None:
+    print(f"\n{msg}" if msg.startswith("ipsph: warning") else msg, file=sys.stderr)
+
+
 def _asdict(obj):
     from .io.provenance import to_jsonable
     return to_jsonable(obj)
@@ -367,15 +404,21 @@ def run(scene: Scene, opts: RunOptions) -> int:
         check_render_size(scene)
         from .render_worker import BackgroundRenderer
         renderer = BackgroundRenderer()
+    surfacer = None
+    wants = scene.output.surface or (scene.render.enabled and opts.render and scene.render.mode == "surface")
+    if wants if opts.surface is None else opts.surface:  # start it now: it imports splashsurf while we sample
+        from .surface_worker import BackgroundSurfacer
+        surfacer = BackgroundSurfacer()
     try:
-        return _run(scene, opts, resume, renderer)
+        return _run(scene, opts, resume, renderer, surfacer)
     except BaseException:
-        if renderer is not None:
-            renderer.terminate()
+        for worker in (renderer, surfacer):
+            if worker is not None:
+                worker.terminate()
         raise
 
 
-def _run(scene: Scene, opts: RunOptions, resume, renderer) -> int:
+def _run(scene: Scene, opts: RunOptions, resume, renderer, surfacer=None) -> int:
     from .scene import scene_to_dict
     out = opts.out_dir
     import numba
@@ -416,7 +459,7 @@ def _run(scene: Scene, opts: RunOptions, resume, renderer) -> int:
         info.update(_previous_info(out))
         info["resumed"] = info.get("resumed", []) + [{"time": resume.time, "step": resume.steps, "at": now}]
     progress = sys.stderr.isatty() if opts.progress is None else opts.progress
-    folder = OutputFolder(out, sim, scene, info, renderer, progress, resume)
+    folder = OutputFolder(out, sim, scene, info, renderer, progress, resume, surfacer)
     info["setup_seconds"] = time.perf_counter() - t_setup
     _write_info(out, info, sim, folder)
     old = {s: signal.signal(s, _on_signal) for s in (signal.SIGINT, signal.SIGTERM)}

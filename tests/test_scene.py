@@ -50,7 +50,7 @@ def test_default_scene_is_the_documented_dam_break():
 def test_table_defaults_equal_the_model_defaults():
     """PARAMS documents each default; it must be the dataclass default that actually applies."""
     owners = {"": Scene, "time_step": model.TimeStepConfig, "solver": model.SolverConfig,
-              "output": model.OutputConfig, "render": model.RenderConfig}
+              "output": model.OutputConfig, "render": model.RenderConfig, "surface": model.SurfaceConfig}
     checked = 0
     for p in PARAMS:
         head = p.path.split(".", 1)[0]
@@ -72,7 +72,8 @@ def test_table_defaults_equal_the_model_defaults():
     # every model field a user can set is in the table (no silently unreachable setting)
     targets = {p.target for p in PARAMS}
     for prefix, cls in (("time_step.", model.TimeStepConfig), ("solver.", model.SolverConfig),
-                        ("output.", model.OutputConfig), ("render.", model.RenderConfig)):
+                        ("output.", model.OutputConfig), ("render.", model.RenderConfig),
+                        ("surface.", model.SurfaceConfig)):
         for f in dataclasses.fields(cls):
             assert prefix + f.name in targets, f"{cls.__name__}.{f.name} has no scene key"
 

@@ -6,6 +6,8 @@
     ipsph bench --first-frame                    # seconds to the first frame, cold and warm Numba cache
     ipsph bench --render-sizes 100000 1000000    # issue 4: render seconds per 1280x720 frame
     ipsph bench --render-overhead --repeats 5    # issue 4: default scene with / without renders
+    ipsph bench --surface-sizes 1000000          # issue 20: seconds per surface of a jittered N lattice
+    ipsph bench --surface-overhead --repeats 5   # issue 20: default scene with / without --surface
     ipsph bench --table1                         # issue 5: the paper's Table 1 on pipelines/*.toml
     ipsph bench --figure4 fig4 --end-time 1.5     # issue 5: Figure 4, IPSPH beside PF, and their errors
     ipsph bench --sweep                          # issue 21: a 2-worker sweep against the same 4 runs in a row
@@ -67,6 +69,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "(default sizes: 100000 1000000)")
     p.add_argument("--render-overhead", action="store_true",
                    help="issue 4: wall time of `ipsph run` on the default scene with and without renders, "
+                        "--repeats alternating pairs, and the slow-down (target <= 25 %%)")
+    p.add_argument("--surface-sizes", nargs="*", type=int, metavar="N", default=None,
+                   help="issue 20: seconds per surface reconstruction of a jittered lattice of N particles on "
+                        "--threads threads, median of --repeats (default size: 1000000; --set surface.KEY=VALUE)")
+    p.add_argument("--surface-overhead", action="store_true",
+                   help="issue 20: wall time of `ipsph run` on the default scene with and without --surface, "
                         "--repeats alternating pairs, and the slow-down (target <= 25 %%)")
     p.add_argument("--first-frame", action="store_true",
                    help="time to first frame of `ipsph run` (default scene), with a cold and a warm Numba cache")
@@ -352,6 +360,23 @@ def main(args) -> int:
         texts.append(("## Render overhead (default scene)\n\n" if args.markdown
                       else "== render overhead (default scene) ==\n") + overhead_table(summary, args.markdown))
         failed |= not summary["ok"]
+    if args.surface_sizes is not None:
+        from .surface_cost import sizes_table, surface_seconds
+        over = [o for o in args.set if o.startswith("surface.")]
+        rows = [surface_seconds(n, args.threads, args.repeats, over, timeout=min(args.timeout, 900.0), log=_log)
+                for n in (args.surface_sizes or [1_000_000])]
+        out["surface_sizes"] = rows
+        texts.append(("## Surface reconstruction per frame\n\n" if args.markdown
+                      else "== surface reconstruction per frame ==\n") + sizes_table(rows, args.markdown))
+        failed |= any(r["particles"] is None for r in rows)
+    if args.surface_overhead:
+        from .surface_cost import overhead_table as surface_table, surface_overhead
+        summary = surface_overhead(args.repeats, args.threads, args.max_load, timeout=min(args.timeout, 900.0),
+                                   log=_log)
+        out["surface_overhead"] = summary
+        texts.append(("## Surface overhead (default scene)\n\n" if args.markdown
+                      else "== surface overhead (default scene) ==\n") + surface_table(summary, args.markdown))
+        failed |= not summary["ok"]
     if args.scaling is not None:
         peer, why = _use_peer(args.peer)
         header += f"; scaling: {why}"
@@ -360,7 +385,8 @@ def main(args) -> int:
         texts.append(("## Scaling (dam break)\n\n" if args.markdown else "== scaling (dam break) ==\n") + text)
         failed |= any(r.get("error") for r in rows)
     if args.table1 or not (args.first_frame or args.scaling is not None or args.render_sizes is not None
-                           or args.render_overhead or args.sweep):
+                           or args.render_overhead or args.surface_sizes is not None or args.surface_overhead
+                           or args.sweep):
         peer, why = _use_peer(args.peer)
         header += f"; {why}"
         _log(header)

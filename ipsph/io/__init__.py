@@ -6,6 +6,7 @@ Layout of an output folder OUT (fixed; the runner fills it, `ipsph render` reads
     OUT/frames/fluid_000000.vtu   one per frame, binary raw appended (zlib level 1 on request)
     OUT/boundary.vtu              boundary particles, written once (fields `volume`, `id`)
     OUT/boundary_surface.vtp      the transformed boundary meshes, for renders
+    OUT/surfaces/surface_000000.vtp   the fluid's surface mesh per frame (output.surface, `ipsph surface`)
     OUT/stats.csv                 one row per step
     OUT/run.json                  provenance
     OUT/renders/frame_000000.png, OUT/plots/*.png, OUT/video.mp4|gif
@@ -24,7 +25,7 @@ from ..errors import WriteError
 
 __all__ = [
     "FRAMES_DIR", "RUN_PVD", "BOUNDARY_VTU", "BOUNDARY_SURFACE", "STATS_CSV", "RUN_JSON",
-    "RENDERS_DIR", "PLOTS_DIR", "frame_file", "atomic_path",
+    "RENDERS_DIR", "PLOTS_DIR", "SURFACES_DIR", "frame_file", "surface_file", "atomic_path",
 ]
 
 RUN_PVD = "run.pvd"
@@ -35,11 +36,17 @@ STATS_CSV = "stats.csv"
 RUN_JSON = "run.json"
 RENDERS_DIR = "renders"
 PLOTS_DIR = "plots"
+SURFACES_DIR = "surfaces"
 
 
 def frame_file(index: int) -> str:
     """Relative path of fluid frame `index` inside an output folder."""
     return f"{FRAMES_DIR}/fluid_{index:06d}.vtu"
+
+
+def surface_file(index: int, fmt: str = "vtp") -> str:
+    """Relative path of the surface mesh of frame `index` (fmt: vtp | obj | ply)."""
+    return f"{SURFACES_DIR}/surface_{index:06d}.{fmt}"
 
 
 def _fsync_dir(folder: Path) -> None:

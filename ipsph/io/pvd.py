@@ -1,7 +1,8 @@
 """The ParaView collection (.pvd) that strings the frames into one time series.
 
 Per timestep two DataSets: part="0" the fluid frame, part="1" the boundary file written once
-(ecosystem.md: ParaView and pyvista's PVDReader show both as one series). File names inside
+(ecosystem.md: ParaView and pyvista's PVDReader show both as one series), and part="2" the
+frame's surface mesh once it has one (output.surface, `ipsph surface`). File names inside
 are relative to the .pvd's folder. The file is rewritten atomically after every frame, so a
 reader (ParaView, `ipsph render`) always sees a complete, valid series.
 """
@@ -24,6 +25,7 @@ class PvdSeries:
         self.path = Path(path)
         self.boundary_file = self._relative(boundary_file) if boundary_file is not None else None
         self.frames: list[tuple[float, str]] = []
+        self.surfaces: dict[float, str] = {}  # frame time -> surface file, for frames that have one
 
     def _relative(self, file: str | os.PathLike) -> str:
         p = Path(file)
@@ -43,12 +45,17 @@ class PvdSeries:
         self.frames.append((time, self._relative(fluid_file)))
         self.write()
 
+    def add_surface(self, time: float, surface_file: str | os.PathLike) -> None:
+        """List the surface mesh of the frame at `time` (call write() to rewrite the .pvd)."""
+        self.surfaces[float(time)] = self._relative(surface_file)
+
     def truncate_after(self, time: float) -> list[tuple[float, str]]:
         """Drop frames later than `time` (resume from a checkpoint), rewrite; return the dropped ones."""
         limit = float(time) + 1e-12 * max(1.0, abs(float(time)))  # frame times round-trip exactly via repr
         kept = [f for f in self.frames if f[0] <= limit]
         dropped = self.frames[len(kept):]
         self.frames = kept
+        self.surfaces = {t: f for t, f in self.surfaces.items() if t <= limit}
         self.write()
         return dropped
 
@@ -60,6 +67,9 @@ class PvdSeries:
             lines.append(f'    <DataSet timestep="{t!r}" group="" part="0" file="{_attr(f)}"/>')
             if self.boundary_file is not None:
                 lines.append(f'    <DataSet timestep="{t!r}" group="" part="1" file="{_attr(self.boundary_file)}"/>')
+            if t in self.surfaces:
+                lines.append(f'    <DataSet timestep="{t!r}" group="" part="2" file="{_attr(self.surfaces[t])}" '
+                             f'name="surface"/>')
         lines += ['  </Collection>', '</VTKFile>', '']
         return "\n".join(lines)
 
@@ -84,6 +94,7 @@ class PvdSeries:
             raise OutputError(f"series file {path} (resolved {path.resolve()}) is not a VTK collection (.pvd)")
         fluid: dict[float, str] = {}
         boundary = None
+        surfaces: dict[float, str] = {}
         for ds in coll.iter("DataSet"):
             t = float(ds.get("timestep", "0"))
             part = ds.get("part", "0")
@@ -91,9 +102,12 @@ class PvdSeries:
                 fluid[t] = ds.get("file")
             elif part == "1":
                 boundary = ds.get("file")
+            elif part == "2":
+                surfaces[t] = ds.get("file")
         series = cls(path, None)
         series.boundary_file = boundary
         series.frames = sorted(fluid.items())
+        series.surfaces = surfaces
         return series
 
 
