@@ -1,7 +1,7 @@
 """ipsph: Incompressible Projective SPH (and the PF and DFSPH references) in Numba."""
 __version__ = "0.1.0"
 
-__all__ = ["__version__", "Simulation", "load_scene"]
+__all__ = ["__version__", "Simulation", "load_scene", "sweep"]
 
 
 def __getattr__(name):  # lazy: importing ipsph must stay cheap and side-effect free
@@ -11,4 +11,7 @@ def __getattr__(name):  # lazy: importing ipsph must stay cheap and side-effect 
     if name == "load_scene":
         from .scene import load_scene
         return load_scene
+    if name == "sweep":
+        from .ensemble import sweep
+        return sweep
     raise AttributeError(name)

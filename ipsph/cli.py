@@ -1,4 +1,4 @@
-"""Command line: `ipsph run | render | surface | plot | bench` (also `python -m ipsph`).
+"""Command line: `ipsph run | render | surface | plot | sweep | bench` (also `python -m ipsph`).
 
 User errors print one line on stderr and exit 2; numerical failures exit 3; interrupts 130.
 """
@@ -79,6 +79,10 @@ def _parser() -> argparse.ArgumentParser:
     pl.add_argument("out", type=Path, nargs="+", help="output folders (several are overlaid)")
     pl.add_argument("-o", "--output", type=Path, help="folder for the PNGs (default: the first run's plots/)")
 
+    sw = sub.add_parser("sweep", help="run a sweep of scene variations on a Dask cluster (docs/sweeps.md)")
+    from .ensemble.cli import add_arguments as sweep_arguments
+    sweep_arguments(sw)
+
     b = sub.add_parser("bench", help="benchmark the methods (and SPlisHSPlasH, when installed)")
     from .benchmark.cli import add_arguments
     add_arguments(b)
@@ -139,8 +143,10 @@ def _surface(args) -> int:
 
 
 def _plot(args) -> int:
+    from .ensemble.records import plot_folders
     from .plots import plot_runs
-    for p in plot_runs(list(args.out), args.output):
+    dirs, target = plot_folders(list(args.out), args.output)  # a sweep folder stands for its members
+    for p in plot_runs(dirs, target):
         print(p)
     return 0
 
@@ -160,6 +166,9 @@ def main(argv: list[str] | None = None) -> int:
             return _surface(args)
         if args.command == "plot":
             return _plot(args)
+        if args.command == "sweep":
+            from .ensemble.cli import main as sweep_main
+            return sweep_main(args)
         if args.command == "bench":
             from .benchmark.cli import main as bench_main
             return bench_main(args)

@@ -122,7 +122,7 @@ def _run(scene: Scene, opts: RunOptions, resume, renderer, surfacer=None) -> int
     info = {"scene": scene_to_dict(scene), "scene_file": str(scene.source) if scene.source else None,
             "method": scene.method.value, "status": "running", "completed": False, "exit_code": None,
             "particle_radius": scene.particle_radius, "fluid_particles": sim.n_fluid,
-            "boundary_particles": sim.n_boundary,
+            "boundary_particles": sim.n_boundary, "wall_fit": sim.boundary.fit_report,
             "domain_bounds": [float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1]), float(lo[2]), float(hi[2])],
             "frames": 0, "steps": 0, "sim_time": 0.0, "wall_seconds": None, "threads": numba.get_num_threads(),
             "notes": notes, "warnings": list(scene.warnings), "versions": provenance.versions(),

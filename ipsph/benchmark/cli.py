@@ -10,6 +10,7 @@
     ipsph bench --surface-overhead --repeats 5   # issue 20: default scene with / without --surface
     ipsph bench --table1                         # issue 5: the paper's Table 1 on pipelines/*.toml
     ipsph bench --figure4 fig4 --end-time 1.5     # issue 5: Figure 4, IPSPH beside PF, and their errors
+    ipsph bench --sweep                          # issue 21: a 2-worker sweep against the same 4 runs in a row
 
 Every simulation runs in its own worker process (peak RSS per method) with the same thread count
 (NUMBA_NUM_THREADS for ours, OMP_NUM_THREADS for SPlisHSPlasH), in the order
@@ -84,6 +85,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="issue 5: the paper's Figure 4 - breaking dam, IPSPH beside PF at the same times, "
                         "rendered side by side into OUT, plus their density error against time "
                         "(uses --end-time, default here 1.0, and --threads)")
+    p.add_argument("--sweep", action="store_true",
+                   help="issue 21: 4 members on a 2-worker x 1-thread LocalCluster against the same 4 `ipsph run "
+                        "--threads 2` one after another: wall ratio and scheduler overhead per member "
+                        "(uses --end-time, --repeats)")
     p.add_argument("--pipelines", nargs="+", choices=sorted(PIPELINES), default=None,
                    help="with --table1: which pipelines (default: all three)")
     p.add_argument("--dragon-mesh", type=Path, metavar="OBJ",
@@ -313,6 +318,9 @@ def reprint(path: Path, markdown: bool, max_load: float) -> str:
         texts.append(h("scaling (dam break)") + report.scaling_table(saved["scaling"], markdown, max_load))
     if saved.get("table1"):
         texts.append(h("Table 1") + report.table1(report.summarise(saved["table1"], max_load), markdown))
+    if saved.get("sweep"):
+        from .sweep_bench import table as sweep_table
+        texts.append(h("sweep on a LocalCluster") + sweep_table(saved["sweep"], markdown, max_load))
     if saved.get("runs"):
         texts.append(report.scene_tables(report.summarise(saved["runs"], max_load), markdown, max_load))
     m = saved.get("machine", {})
@@ -351,6 +359,12 @@ def main(args) -> int:
         out["render_cost"] = rows
         texts.append(("## Render cost per frame\n\n" if args.markdown else "== render cost per frame ==\n")
                      + table(rows, args.markdown))
+    if args.sweep:
+        from .sweep_bench import bench_sweep, table as sweep_table
+        result = bench_sweep(args.end_time, args.repeats, args.max_load, min(args.timeout, 900.0), _log)
+        out["sweep"] = result
+        texts.append(("## Sweep on a LocalCluster\n\n" if args.markdown else "== sweep on a LocalCluster ==\n")
+                     + sweep_table(result, args.markdown, args.max_load))
     if args.surface_sizes is not None:
         from .surface_cost import sizes_table, surface_seconds
         over = [o for o in args.set if o.startswith("surface.")]
@@ -378,7 +392,8 @@ def main(args) -> int:
         texts.append(("## Scaling (dam break)\n\n" if args.markdown else "== scaling (dam break) ==\n") + text)
         failed |= any(r.get("error") for r in rows)
     if args.table1 or not (args.first_frame or args.scaling is not None or args.render_sizes is not None
-                           or args.render_overhead or args.surface_sizes is not None or args.surface_overhead):
+                           or args.render_overhead or args.surface_sizes is not None or args.surface_overhead
+                           or args.sweep):
         peer, why = _use_peer(args.peer)
         header += f"; {why}"
         _log(header)
