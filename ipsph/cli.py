@@ -151,6 +151,19 @@ def _plot(args) -> int:
     return 0
 
 
+def _sweep(args) -> int:
+    from .ensemble.cli import main as sweep_main
+    return sweep_main(args)
+
+
+def _bench(args) -> int:
+    from .benchmark.cli import main as bench_main
+    return bench_main(args)
+
+
+_COMMANDS = {"run": _run, "render": _render, "surface": _surface, "plot": _plot, "sweep": _sweep, "bench": _bench}
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = _parser()
     args = parser.parse_args(argv)
@@ -158,20 +171,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
-        if args.command == "run":
-            return _run(args)
-        if args.command == "render":
-            return _render(args)
-        if args.command == "surface":
-            return _surface(args)
-        if args.command == "plot":
-            return _plot(args)
-        if args.command == "sweep":
-            from .ensemble.cli import main as sweep_main
-            return sweep_main(args)
-        if args.command == "bench":
-            from .benchmark.cli import main as bench_main
-            return bench_main(args)
+        return _COMMANDS[args.command](args)
     except IpsphError as exc:
         print(f"ipsph: error: {exc}", file=sys.stderr)
         return exc.exit_code

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import EXIT_INTERRUPTED, InputError, OutputError
+from ..io import check_writable
 from . import member as mem
 from . import records
 from .spec import Sweep, load_sweep, validate
@@ -157,14 +158,7 @@ def plan(sweep: Sweep, out: Path, resume: bool, overwrite: bool) -> tuple[list[d
 
 def prepare(sweep: Sweep, out: Path, overwrite: bool, recs: list[dict], old: dict | None) -> None:
     """Create OUT (checking it is writable); with --overwrite delete the earlier sweep's member folders."""
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        probe = out / f".ipsph-write-test-{os.getpid()}"
-        probe.write_bytes(b"ok")
-        probe.unlink()
-    except OSError as exc:
-        raise OutputError(f"output folder {out} (resolved {out.resolve()}) is not writable: "
-                          f"{exc.strerror or exc}") from exc
+    check_writable(out)
     if overwrite:
         names = {r["name"] for r in recs} | {r["name"] for r in (old or {}).get("members", [])}
         for n in names:

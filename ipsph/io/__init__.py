@@ -25,7 +25,7 @@ from ..errors import WriteError
 
 __all__ = [
     "FRAMES_DIR", "RUN_PVD", "BOUNDARY_VTU", "BOUNDARY_SURFACE", "STATS_CSV", "RUN_JSON",
-    "RENDERS_DIR", "PLOTS_DIR", "SURFACES_DIR", "frame_file", "surface_file", "atomic_path",
+    "RENDERS_DIR", "PLOTS_DIR", "SURFACES_DIR", "frame_file", "surface_file", "atomic_path", "check_writable",
 ]
 
 RUN_PVD = "run.pvd"
@@ -37,6 +37,19 @@ RUN_JSON = "run.json"
 RENDERS_DIR = "renders"
 PLOTS_DIR = "plots"
 SURFACES_DIR = "surfaces"
+
+
+def check_writable(out: Path) -> None:
+    """Create the folder `out` and prove it writable (a probe file), else a one-line OutputError."""
+    from ..errors import OutputError
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        probe = out / f".ipsph-write-test-{os.getpid()}"
+        probe.write_bytes(b"ok")
+        probe.unlink()
+    except OSError as exc:
+        raise OutputError(f"output folder {out} (resolved {out.resolve()}) is not writable: "
+                          f"{exc.strerror or exc}") from exc
 
 
 def frame_file(index: int) -> str:

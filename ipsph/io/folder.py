@@ -3,7 +3,6 @@ run.json. No signal handling and no solver: the runner drives it from the time l
 """
 from __future__ import annotations
 
-import os
 import shutil
 import sys
 import time
@@ -14,7 +13,7 @@ import numpy as np
 from .. import checkpoint as ckpt
 from ..errors import OutputError
 from . import (BOUNDARY_SURFACE, BOUNDARY_VTU, FRAMES_DIR, PLOTS_DIR, RENDERS_DIR, RUN_JSON, RUN_PVD, STATS_CSV,
-               SURFACES_DIR, frame_file, provenance, pvd, stats, vtu)
+               SURFACES_DIR, check_writable, frame_file, provenance, pvd, stats, vtu)
 
 
 def check_output_folder(out: Path, overwrite: bool, resume: bool) -> None:
@@ -28,14 +27,7 @@ def check_output_folder(out: Path, overwrite: bool, resume: bool) -> None:
     if resume and not (out / RUN_JSON).exists():
         raise OutputError(f"--resume: output folder {out} (resolved {out.resolve()}) holds no earlier run "
                           f"to continue; run without --resume")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        probe = out / f".ipsph-write-test-{os.getpid()}"
-        probe.write_bytes(b"ok")
-        probe.unlink()
-    except OSError as exc:
-        raise OutputError(f"output folder {out} (resolved {out.resolve()}) is not writable: "
-                          f"{exc.strerror or exc}") from exc
+    check_writable(out)
     if overwrite and not resume:
         for name in (FRAMES_DIR, RENDERS_DIR, PLOTS_DIR, SURFACES_DIR):
             shutil.rmtree(out / name, ignore_errors=True)
