@@ -1,4 +1,4 @@
-"""Command line: `ipsph run | render | plot | bench` (also `python -m ipsph`).
+"""Command line: `ipsph run | render | plot | paraview | bench` (also `python -m ipsph`).
 
 User errors print one line on stderr and exit 2; numerical failures exit 3; interrupts 130.
 """
@@ -63,6 +63,11 @@ def _parser() -> argparse.ArgumentParser:
     pl = sub.add_parser("plot", help="plot density/divergence error, iterations and timings of one or more runs")
     pl.add_argument("out", type=Path, nargs="+", help="output folders (several are overlaid)")
     pl.add_argument("-o", "--output", type=Path, help="folder for the PNGs (default: the first run's plots/)")
+
+    pv = sub.add_parser("paraview", help="write OUT/paraview_view.py: opens the run in ParaView as it was rendered",
+                        description="Write OUT/paraview_view.py, a ParaView Python script that opens the run "
+                                    "with its settings and a ready SPH line interpolator (ipsph run writes it too).")
+    pv.add_argument("out", type=Path, help="output folder of `ipsph run`")
 
     b = sub.add_parser("bench", help="benchmark the methods (and SPlisHSPlasH, when installed)")
     from .benchmark.cli import add_arguments
@@ -132,6 +137,12 @@ def main(argv: list[str] | None = None) -> int:
             return _render(args)
         if args.command == "plot":
             return _plot(args)
+        if args.command == "paraview":
+            from .paraview import write_view_script
+            path = write_view_script(args.out)
+            print(f"ipsph: wrote {path}; open it with `pvpython {path}` (headless: `xvfb-run -a pvpython {path} "
+                  f"--screenshot view.png`) or ParaView's View > Python Shell > Run Script", file=sys.stderr)
+            return 0
         if args.command == "bench":
             from .benchmark.cli import main as bench_main
             return bench_main(args)
