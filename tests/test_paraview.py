@@ -239,3 +239,33 @@ def test_sph_line_through_the_tank_is_hydrostatic(tank, tmp_path):
     assert abs(-slope / (rho0 * g) - 1) <= SLOPE_TOL, f"dp/dy = {slope:.0f} Pa/m against -rho0 g = {-rho0 * g:.0f}"
     rho = mean["density"][interior]
     assert np.abs(rho / rho0 - 1).max() <= DENSITY_TOL, f"interior density {rho.min():.1f}..{rho.max():.1f}"
+
+
+GUI_PROBE = """
+import json, sys
+from paraview.servermanager import GetRepresentation
+from paraview.simple import GetActiveView, GetSources
+ns = {"__name__": "__console__"}  # what ParaView's Python shell (Run Script, --script) runs a file as
+exec(compile(open(sys.argv[1]).read(), sys.argv[1], "exec"), ns)
+view = GetActiveView()
+sources = {k[0]: v for k, v in GetSources().items()}
+shown = {n: GetRepresentation(p, view) for n, p in sources.items()}  # None: never shown (eye closed)
+fluid = shown["fluid"]
+print(json.dumps({"camera": list(view.CameraPosition),
+                  "visible": {n: bool(r is not None and r.Visibility) for n, r in shown.items()},
+                  "radius": fluid.GaussianRadius, "colour_by": list(fluid.ColorArrayName)}))
+"""
+
+
+def test_script_in_the_gui_python_shell_sets_up_and_hides_the_sph_line(dam, tmp_path):
+    probe = tmp_path / "gui_probe.py"
+    probe.write_text(GUI_PROBE)
+    cmd = _pvpython() + [str(probe), str(dam / "paraview_view.py")]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-4000:]
+    got = json.loads(proc.stdout.strip().splitlines()[-1])
+    s = view_settings(dam)
+    assert got["camera"] == pytest.approx(s["camera"]["position"])  # not reset by the first render
+    assert got["radius"] == s["particle_radius"] and got["colour_by"] == ["POINTS", "velocity"]
+    assert got["visible"]["fluid"] and got["visible"]["walls"] and got["visible"]["time"]
+    assert not got["visible"]["SPH line"] and not got["visible"]["wall particles"]

@@ -71,12 +71,13 @@ def _rgb_points(lo, hi, colours):
     return pts
 
 
-def build(s=None, where=None):
-    """Load the run and set up the view; returns {name: proxy}."""
+def build(s=None, where=None, text_scale=1.0):
+    """Load the run and set up the view (text sizes times `text_scale`); returns {name: proxy}."""
     from paraview import simple as pv
 
     s = s or SETTINGS
     where = where or folder()
+    pv._DisableFirstRenderCameraReset()  # as ParaView's own state files do: keep the camera set below
     files = s["files"]
     view = pv.GetActiveViewOrCreate("RenderView")
     view.OrientationAxesVisibility = 0
@@ -110,9 +111,10 @@ def build(s=None, where=None):
     bar.Title = s["speed_title"]
     bar.ComponentTitle = ""
     bar.RangeLabelFormat = bar.LabelFormat = "%.2f"
-    bar.TitleFontSize, bar.LabelFontSize = 20, 16
+    k = float(text_scale)
+    bar.TitleFontSize, bar.LabelFontSize = round(20 * k), round(16 * k)
     bar.TitleColor = bar.LabelColor = [1.0, 1.0, 1.0]
-    bar.ScalarBarThickness = 24
+    bar.ScalarBarThickness = round(24 * k)
     bar.WindowLocation = "Any Location"
     bar.Orientation = "Vertical"
     bar.Position = s["scalar_bar"]["position"]
@@ -146,14 +148,14 @@ def build(s=None, where=None):
     ann.Format = "t = {time:.3f} s"
     ad = pv.Show(ann, view)
     ad.WindowLocation = "Upper Left Corner"
-    ad.FontSize = 28
+    ad.FontSize = round(28 * k)
     ad.Color = [1.0, 1.0, 1.0]
     out["time"] = ann
     if s.get("title"):
         title = pv.Text(registrationName="title", Text=s["title"])
         td = pv.Show(title, view)
         td.WindowLocation = "Lower Left Corner"
-        td.FontSize = 20
+        td.FontSize = round(20 * k)
         td.Color = s["title_colour"]
         out["title"] = title
 
@@ -214,7 +216,8 @@ def main(argv=None):
                    help="with --line-csv: every frame into the one CSV, with a Time column")
     p.add_argument("--show-line", action="store_true", help="show the SPH line in the view")
     args, _ = p.parse_known_args(argv if argv is not None else [])
-    proxies = build()
+    size = list(args.size or SETTINGS["image_size"])
+    proxies = build(text_scale=size[1] / SETTINGS["image_size"][1] if args.screenshot else 1.0)
     t = show_time(proxies, args.time)
     if args.show_line:
         pv.Show(proxies["SPH line"], proxies["view"])
@@ -226,8 +229,7 @@ def main(argv=None):
             pv.SaveData(args.line_csv, proxy=proxies["SPH line"], Precision=9)
             print(f"paraview_view: SPH line at t = {t:.4g} s -> {args.line_csv}")
     if args.screenshot:
-        size = list(args.size or SETTINGS["image_size"])
-        proxies["view"].ViewSize = size  # text sizes are in pixels of this size
+        proxies["view"].ViewSize = size  # text sizes are pixels of this size
         pv.SaveScreenshot(args.screenshot, proxies["view"], ImageResolution=size, FontScaling="Do not scale fonts")
         print(f"paraview_view: t = {t:.4g} s -> {args.screenshot}")
     elif not args.line_csv:
