@@ -1,8 +1,9 @@
 """ParaView users need no fiddling (issue 23): the generated OUT/paraview_view.py in a real pvpython.
 
-The pvpython tests need ParaView's Python and, for its X-only builds (Debian's `paraview`), xvfb:
-`.ci/run` installs both (`apt-get install -y paraview xvfb`). They skip where pvpython is not
-installed, except under CI (CI=true), where a missing pvpython fails.
+The pvpython tests need ParaView's Python and, for its X-only builds (Debian's `paraview`), a
+display: without one they start an Xvfb of their own. `.ci/run` installs both (`apt-get install -y
+paraview xvfb`). They skip where pvpython (or, with no display, Xvfb) is not installed, except
+under CI (CI=true), where that fails.
 """
 import csv
 import json
@@ -31,26 +32,49 @@ TANK_END, TANK_AVERAGE_FROM = 2.0, 1.0
 # colour map's colour for that particle's speed (lighting scales a colour, keeping its direction;
 # the map's darkest and lightest ends are 37 degrees apart).
 COLOUR_ANGLE_DEG = 8.0
+# The dam break's colour range, m/s: sqrt(2 g 0.8 m) = 3.96 m/s, the column's free-fall speed.
+SPEED_TOP = 4.0
 # Pixels sampled inside each particle's disc: the inner 60 % of its projected radius, away from
 # the shaded rim and from neighbours' edges.
 INNER_DISC = 0.6
 
 
-def _pvpython():
-    """(pvpython command prefix) or skip/fail: xvfb-run wraps it where there is no display."""
-    pv = shutil.which("pvpython")
-    xvfb = shutil.which("xvfb-run")
-    if pv and (os.environ.get("DISPLAY") or xvfb):
-        return ([xvfb, "-a"] if not os.environ.get("DISPLAY") else []) + [pv]
-    why = "pvpython (and xvfb-run) not installed: apt-get install -y paraview xvfb"
+def _missing(why):
     if os.environ.get("CI") == "true":
         pytest.fail(f"CI must run the ParaView tests: {why} (.ci/run installs them)")
     pytest.skip(why)
 
 
-def _run_script(out, *args, timeout=300):
-    cmd = _pvpython() + [str(out / "paraview_view.py"), *map(str, args)]
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=out)
+@pytest.fixture(scope="module")
+def pvpython():
+    """(command, environment) to run pvpython: on a display of its own where there is none.
+
+    One Xvfb for the module, started with -displayfd (the server picks a free display itself:
+    `xvfb-run -a` races when several start at once and then aborts one pvpython)."""
+    pv = shutil.which("pvpython")
+    if not pv:
+        _missing("pvpython not installed: apt-get install -y paraview xvfb")
+    if os.environ.get("DISPLAY"):
+        yield [pv], dict(os.environ)
+        return
+    xvfb = shutil.which("Xvfb")
+    if not xvfb:
+        _missing("no display and no Xvfb for Debian's X-only pvpython: apt-get install -y xvfb")
+    server = subprocess.Popen([xvfb, "-displayfd", "1", "-screen", "0", "1920x1080x24", "-nolisten", "tcp"],
+                              stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+    try:
+        number = server.stdout.readline().strip()  # written once the server accepts clients
+        assert number.isdigit(), f"Xvfb did not start (exit status {server.poll()})"
+        yield [pv], {**os.environ, "DISPLAY": f":{int(number)}"}
+    finally:
+        server.terminate()
+        server.wait(timeout=30)
+
+
+def _run_script(pvpython, out, *args, timeout=300):
+    cmd, env = pvpython
+    cmd = cmd + [str(out / "paraview_view.py"), *map(str, args)]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=out, env=env)
     assert proc.returncode == 0, f"{' '.join(cmd)} failed:\n{proc.stdout[-2000:]}\n{proc.stderr[-4000:]}"
     return proc
 
@@ -75,9 +99,11 @@ fps = 10
 
 @pytest.fixture(scope="module")
 def dam(tmp_path_factory):
-    """The default dam break to t = 0.48 s (no renders: the colour range is the run's top speed)."""
+    """The default dam break to t = 0.48 s, with the scene's colour range (without one, a run with no
+    renders colours by its top speed, which one spray particle can set)."""
     out = tmp_path_factory.mktemp("pv") / "dam"
-    assert main(["run", "--end-time", "0.48", "--no-render", "--quiet", "-o", str(out)]) == 0
+    assert main(["run", "--end-time", "0.48", "--no-render", "--quiet", "-o", str(out),
+                 "--set", f"render.speed_range=[0.0,{SPEED_TOP}]"]) == 0
     return out
 
 
@@ -155,11 +181,11 @@ def _angle_deg(a, b):
     return np.degrees(np.arccos(np.clip((a * b).sum(axis=-1), -1.0, 1.0)))
 
 
-def test_screenshot_of_the_dam_break_is_velocity_coloured_and_unobstructed(dam, tmp_path):
+def test_screenshot_of_the_dam_break_is_velocity_coloured_and_unobstructed(pvpython, dam, tmp_path):
     import imageio.v2 as imageio
 
     png = tmp_path / "dam.png"
-    _run_script(dam, "--screenshot", png, "--time", 0.48)
+    _run_script(pvpython, dam, "--screenshot", png, "--time", 0.48)
     img = imageio.imread(png)[..., :3].astype(float)
     s = view_settings(dam)
     assert img.shape == (s["image_size"][1], s["image_size"][0], 3)
@@ -191,10 +217,11 @@ def test_screenshot_of_the_dam_break_is_velocity_coloured_and_unobstructed(dam, 
     sel = inner & (owner >= 0)
     ang = _angle_deg(img[sel], expected[owner[sel]])
     ok = ang <= COLOUR_ANGLE_DEG
+    fast = f[owner[sel]] > 0.4  # the light half of the map: these fail when the range or map is wrong
+    print(f"fluid pixels {sel.sum()}, right colour {ok.mean():.1%}, fast {fast.sum()} of them {ok[fast].mean():.1%}")
     # velocity-coloured: the fluid's pixels carry their particle's speed colour, slow and fast
     assert sel.sum() > 20_000, f"only {sel.sum()} fluid pixels in view"
     assert ok.mean() >= 0.9, f"{ok.mean():.1%} of fluid pixels have their particle's colour"
-    fast = f[owner[sel]] > 0.4  # the light half of the map: these fail when the range or map is wrong
     assert fast.sum() > 200 and ok[fast].mean() >= 0.8, f"fast fluid: {ok[fast].mean():.1%} right colour"
 
     # not hidden by wall particles: away from the fluid, inside the tank, only background and the
@@ -212,17 +239,18 @@ def test_screenshot_of_the_dam_break_is_velocity_coloured_and_unobstructed(dam, 
     empty = box & ~near
     rgb = img[empty]
     sprite = ((rgb[:, 2] - rgb[:, 0]) > 45) | (rgb.min(axis=1) > 170)
+    print(f"empty tank pixels {empty.sum()}, particle-like {sprite.mean():.3%}")
     assert empty.sum() > 50_000
     assert sprite.mean() < 0.002, f"{sprite.mean():.2%} of the tank's empty pixels look like particles"
 
 
-def test_sph_line_through_the_tank_is_hydrostatic(tank, tmp_path):
+def test_sph_line_through_the_tank_is_hydrostatic(pvpython, tank, tmp_path):
     run = json.loads((tank / "run.json").read_text())
     sim = run["scene"]["simulation"]
     rho0, g = sim["density0"], float(np.linalg.norm(sim["gravity"]))
     support = 4 * run["particle_radius"]
     line = tmp_path / "line.csv"
-    _run_script(tank, "--line-csv", line, "--every-frame")
+    _run_script(pvpython, tank, "--line-csv", line, "--every-frame")
     with open(line, newline="") as fh:
         rows = list(csv.DictReader(fh))
     col = {k: np.array([float(r[k]) for r in rows]) for k in ("Time", "Points:1", "pressure", "density",
@@ -238,6 +266,8 @@ def test_sph_line_through_the_tank_is_hydrostatic(tank, tmp_path):
     slope = np.polyfit(ys[interior], mean["pressure"][interior], 1)[0]
     assert abs(-slope / (rho0 * g) - 1) <= SLOPE_TOL, f"dp/dy = {slope:.0f} Pa/m against -rho0 g = {-rho0 * g:.0f}"
     rho = mean["density"][interior]
+    print(f"dp/dy = {slope:.0f} Pa/m = {-slope / (rho0 * g):.4f} rho0 g; interior density "
+          f"{rho.min():.2f}..{rho.max():.2f} kg/m^3 over {interior.sum()} points")
     assert np.abs(rho / rho0 - 1).max() <= DENSITY_TOL, f"interior density {rho.min():.1f}..{rho.max():.1f}"
 
 
@@ -257,11 +287,12 @@ print(json.dumps({"camera": list(view.CameraPosition),
 """
 
 
-def test_script_in_the_gui_python_shell_sets_up_and_hides_the_sph_line(dam, tmp_path):
+def test_script_in_the_gui_python_shell_sets_up_and_hides_the_sph_line(pvpython, dam, tmp_path):
     probe = tmp_path / "gui_probe.py"
     probe.write_text(GUI_PROBE)
-    cmd = _pvpython() + [str(probe), str(dam / "paraview_view.py")]
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    cmd, env = pvpython
+    proc = subprocess.run(cmd + [str(probe), str(dam / "paraview_view.py")], capture_output=True, text=True,
+                          timeout=300, cwd=tmp_path, env=env)
     assert proc.returncode == 0, proc.stderr[-4000:]
     got = json.loads(proc.stdout.strip().splitlines()[-1])
     s = view_settings(dam)
