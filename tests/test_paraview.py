@@ -47,10 +47,12 @@ def _missing(why):
 
 @pytest.fixture(scope="module")
 def pvpython():
-    """(command, environment) to run pvpython: on a display of its own where there is none.
+    """(command, environment) to run pvpython: on an Xvfb display of its own where there is none.
 
-    One Xvfb for the module, started with -displayfd (the server picks a free display itself:
-    `xvfb-run -a` races when several start at once and then aborts one pvpython)."""
+    One Xvfb for the module, started with -displayfd (the server picks a free display number and
+    reports it once it accepts clients: concurrent `xvfb-run -a` race for one number) and
+    -noreset: by default the server resets when its last client leaves, and a pvpython that
+    connects during the reset aborts with "bad X server connection" (one run in two here)."""
     pv = shutil.which("pvpython")
     if not pv:
         _missing("pvpython not installed: apt-get install -y paraview xvfb")
@@ -60,8 +62,8 @@ def pvpython():
     xvfb = shutil.which("Xvfb")
     if not xvfb:
         _missing("no display and no Xvfb for Debian's X-only pvpython: apt-get install -y xvfb")
-    server = subprocess.Popen([xvfb, "-displayfd", "1", "-screen", "0", "1920x1080x24", "-nolisten", "tcp"],
-                              stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+    server = subprocess.Popen([xvfb, "-displayfd", "1", "-screen", "0", "1920x1080x24", "-nolisten", "tcp",
+                               "-noreset"], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
     try:
         number = server.stdout.readline().strip()  # written once the server accepts clients
         assert number.isdigit(), f"Xvfb did not start (exit status {server.poll()})"
@@ -132,6 +134,10 @@ def test_run_writes_named_parts_fluid_series_field_data_and_script(dam):
     grid = pv.read(dam / "frames" / "fluid_000012.vtu")
     assert grid.field_data["particle_radius"][0] == r
     assert grid.field_data["sph_spatial_step"][0] == pytest.approx(2 * r)  # VTK's cubic reaches 2 steps = 4r
+    import meshio  # reads the frame whole (its raw-offset rewriting once misread `velocity` after field data)
+    m = meshio.read(dam / "frames" / "fluid_000012.vtu")
+    assert m.point_data["velocity"].shape == (run["fluid_particles"], 3)
+    assert m.field_data["particle_radius"][0] == r
     s = view_settings(dam)
     assert s["sph"]["spatial_step"] == pytest.approx(2 * r) and s["particle_radius"] == r
     ns = {"__name__": "ipsph.paraview.view_script"}  # defines, runs nothing (no paraview here)

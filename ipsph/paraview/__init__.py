@@ -30,6 +30,7 @@ VTK_CUBIC_REACH = 2.0           # vtkSPHCubicKernel is zero beyond 2 x its spati
 LINE_SAMPLES_PER_RADIUS = 2.0   # default probe line: a sample every r / 2
 MAX_LINE_SAMPLES = 2000
 DENSITY_ARRAY, MASS_ARRAY = "density", "mass"
+DEJAVU_SANS = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf"  # Debian's fonts-dejavu-core, a ParaView dependency
 
 
 def sph_spatial_step(particle_radius: float) -> float:
@@ -38,8 +39,15 @@ def sph_spatial_step(particle_radius: float) -> float:
 
 
 def frame_field_data(particle_radius: float) -> dict[str, float]:
-    """Field data every particle file carries besides `TimeValue` (m): what SPH filters need."""
-    return {"particle_radius": float(particle_radius), "sph_spatial_step": sph_spatial_step(particle_radius)}
+    """Field data every particle file carries besides `TimeValue` (m): what SPH filters need.
+
+    The step is Float32 on purpose: meshio (5.3) rewrites raw appended offsets one array at a time
+    and looks each old offset up among arrays it has already rewritten; three 16-byte Float64
+    field arrays put the first point array at raw offset 48, which the third field array's
+    rewritten offset also reads, and meshio then reads `velocity` as 2 values. Float64, Float64,
+    Float32 (44 bytes) does not collide; tests/test_end_to_end.py reads every frame with meshio."""
+    return {"particle_radius": float(particle_radius),
+            "sph_spatial_step": np.float32(sph_spatial_step(particle_radius))}
 
 
 def _render_config(run: dict):
@@ -129,6 +137,7 @@ def view_settings(out_dir) -> dict:
         "edge_opacity": render.EDGE_OPACITY,
         "title": title,
         "title_colour": list(render._rgb(render.TITLE_COLOUR)),
+        "font_files": [render._font_file(), DEJAVU_SANS],
         "image_size": [int(config.width), int(config.height)],
         "camera": {"position": [float(v) for v in pos], "focal_point": [float(v) for v in focal],
                    "view_up": [float(v) for v in up], "view_angle": render.VIEW_ANGLE_DEG},

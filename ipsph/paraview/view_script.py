@@ -64,6 +64,14 @@ def folder():
     return SETTINGS["folder"]
 
 
+def _font(s):
+    """The renders' font file where this machine has it (ParaView's own Arial draws '[' like '(')."""
+    for f in s.get("font_files") or []:
+        if f and os.path.isfile(f):
+            return f
+    return None
+
+
 def _rgb_points(lo, hi, colours):
     pts = []
     for i, c in enumerate(colours):
@@ -110,10 +118,15 @@ def build(s=None, where=None, text_scale=1.0):
     bar = pv.GetScalarBar(lut, view)
     bar.Title = s["speed_title"]
     bar.ComponentTitle = ""
+    bar.AutomaticLabelFormat = 0
     bar.RangeLabelFormat = bar.LabelFormat = "%.2f"
     k = float(text_scale)
     bar.TitleFontSize, bar.LabelFontSize = round(20 * k), round(16 * k)
     bar.TitleColor = bar.LabelColor = [1.0, 1.0, 1.0]
+    font = _font(s)
+    if font:
+        bar.TitleFontFamily = bar.LabelFontFamily = "File"
+        bar.TitleFontFile = bar.LabelFontFile = font
     bar.ScalarBarThickness = round(24 * k)
     bar.WindowLocation = "Any Location"
     bar.Orientation = "Vertical"
@@ -150,6 +163,8 @@ def build(s=None, where=None, text_scale=1.0):
     ad.WindowLocation = "Upper Left Corner"
     ad.FontSize = round(28 * k)
     ad.Color = [1.0, 1.0, 1.0]
+    if font:
+        ad.FontFamily, ad.FontFile = "File", font
     out["time"] = ann
     if s.get("title"):
         title = pv.Text(registrationName="title", Text=s["title"])
@@ -157,6 +172,8 @@ def build(s=None, where=None, text_scale=1.0):
         td.WindowLocation = "Lower Left Corner"
         td.FontSize = round(20 * k)
         td.Color = s["title_colour"]
+        if font:
+            td.FontFamily, td.FontFile = "File", font
         out["title"] = title
 
     sph_s = s["sph"]
