@@ -1,4 +1,4 @@
-"""Command line: `ipsph run | render | surface | plot | sweep | bench` (also `python -m ipsph`).
+"""Command line: `ipsph run | render | surface | plot | paraview | sweep | bench` (also `python -m ipsph`).
 
 User errors print one line on stderr and exit 2; numerical failures exit 3; interrupts 130.
 """
@@ -82,6 +82,10 @@ def _parser() -> argparse.ArgumentParser:
     sw = sub.add_parser("sweep", help="run a sweep of scene variations on a Dask cluster (docs/sweeps.md)")
     from .ensemble.cli import add_arguments as sweep_arguments
     sweep_arguments(sw)
+    pv = sub.add_parser("paraview", help="write OUT/paraview_view.py: opens the run in ParaView as it was rendered",
+                        description="Write OUT/paraview_view.py, a ParaView Python script that opens the run "
+                                    "with its settings and a ready SPH line interpolator (ipsph run writes it too).")
+    pv.add_argument("out", type=Path, help="output folder of `ipsph run`")
 
     b = sub.add_parser("bench", help="benchmark the methods (and SPlisHSPlasH, when installed)")
     from .benchmark.cli import add_arguments
@@ -169,6 +173,12 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == "sweep":
             from .ensemble.cli import main as sweep_main
             return sweep_main(args)
+        if args.command == "paraview":
+            from .paraview import write_view_script
+            path = write_view_script(args.out)
+            print(f"ipsph: wrote {path}; open it with `pvpython {path}` (headless: `xvfb-run -a pvpython {path} "
+                  f"--screenshot view.png`) or ParaView's View > Python Shell > Run Script", file=sys.stderr)
+            return 0
         if args.command == "bench":
             from .benchmark.cli import main as bench_main
             return bench_main(args)

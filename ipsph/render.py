@@ -47,8 +47,12 @@ VIEW_ANGLE_DEG = 30.0                      # VTK's default vertical field of vie
 BACKGROUND = ("#15181e", "#3b4350")        # bottom, top: dark neutral gradient, white fluid reads on it
 SURFACE_COLOUR = "#c9d3df"
 SURFACE_OPACITY = 0.18
+EDGE_OPACITY = 0.45                        # the walls' outline and creases
 SPEED_COLOURS = ("#08183a", "#1f56b4", "#6fb1ee", "#ffffff")  # dark blue -> blue -> light blue -> white
 SPEED_TITLE = "speed [m/s]"
+SCALAR_BAR_POSITION = (0.885, 0.18)        # lower left corner, normalised viewport
+SCALAR_BAR_LENGTH = 0.62                   # of the viewport height
+TITLE_COLOUR = "#b8c0cc"
 ENGINES = ("splat", "vtk")  # splat: particles rasterised by ipsph.splat over layers VTK drew once
 
 
@@ -234,9 +238,9 @@ def _scalar_bar(lut, scale: float = 1.0):
     bar.SetOrientationToVertical()
     bar.SetTextPositionToSucceedScalarBar()  # labels right of the bar, never over it
     bar.GetPositionCoordinate().SetCoordinateSystemToNormalizedViewport()
-    bar.GetPositionCoordinate().SetValue(0.885, 0.18)
+    bar.GetPositionCoordinate().SetValue(*SCALAR_BAR_POSITION)
     bar.SetWidth(0.09)
-    bar.SetHeight(0.62)
+    bar.SetHeight(SCALAR_BAR_LENGTH)
     bar.SetBarRatio(0.3)
     bar.SetVerticalTitleSeparation(round(14 * scale))
     bar.SetTextPad(round(6 * scale))
@@ -360,12 +364,12 @@ class FrameRenderer:
             fe.Update()
             edges = fe.GetOutput()
             if edges.GetNumberOfPoints():
-                self._walls.append(self._add_surface(edges, 0.45, lighting=False, cull_front=False))
+                self._walls.append(self._add_surface(edges, EDGE_OPACITY, lighting=False, cull_front=False))
 
         self._time_text = self._add_text("", TIME_LABEL_POS(h), max(round(28 * k), 6), "#ffffff")
         if title:
             self._overlays.append(self._add_text(title, (round(18 * k), round(14 * k)), max(round(20 * k), 6),
-                                                 "#b8c0cc"))
+                                                 TITLE_COLOUR))
         self._layers = None      # the static layers of the splat engine, drawn at the first frame
 
         pos, focal, up = camera_for_view(bounds, config.view, width=w, height=h,

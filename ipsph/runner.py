@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from . import checkpoint as ckpt
+from . import paraview
 from . import io as out_io
 from .io import provenance, pvd, stats, vtu  # noqa: F401  (submodules used via out_io)
 from .errors import EXIT_INTERRUPTED, EXIT_OK, IpsphError, NumericalFailure, OutputError
@@ -76,7 +77,8 @@ def check_output_folder(out: Path, overwrite: bool, resume: bool) -> None:
         for name in (out_io.FRAMES_DIR, out_io.RENDERS_DIR, out_io.PLOTS_DIR, out_io.SURFACES_DIR):
             shutil.rmtree(out / name, ignore_errors=True)
         for name in (out_io.RUN_PVD, out_io.BOUNDARY_VTU, out_io.BOUNDARY_SURFACE, out_io.STATS_CSV,
-                     out_io.RUN_JSON, "checkpoint.npz"):
+                     out_io.RUN_JSON, "checkpoint.npz", out_io.PARAVIEW_SCRIPT,
+                     *(p.series for p in out_io.PARTS if p.series)):
             (out / name).unlink(missing_ok=True)
 
 
@@ -182,15 +184,18 @@ class OutputFolder:
         self.out, self.sim, self.scene, self.info = out, sim, scene, info
         self.fields = scene.output.fields
         self.checkpoint_interval = scene.output.checkpoint_interval
+        self.field_data = paraview.frame_field_data(scene.particle_radius)
         (out / out_io.FRAMES_DIR).mkdir(parents=True, exist_ok=True)
         if resume is None:
             b = sim.boundary
             boundary_file = None
             if b.n:
                 out_io.vtu.write_particles(out / out_io.BOUNDARY_VTU, b.x,
-                                           {"volume": b.psi, "id": np.arange(b.n, dtype=np.int64)}, 0.0)
+                                           {"volume": b.psi, "id": np.arange(b.n, dtype=np.int64)}, 0.0,
+                                           field_data=self.field_data)
                 boundary_file = out_io.BOUNDARY_VTU
-            self.pvd = out_io.pvd.PvdSeries(out / out_io.RUN_PVD, boundary_file)
+            surface = out_io.BOUNDARY_SURFACE if scene.boundaries else None  # written below
+            self.pvd = out_io.pvd.PvdSeries(out / out_io.RUN_PVD, boundary_file, static={"boundary_surface": surface})
             self.stats = out_io.stats.StatsWriter(out / out_io.STATS_CSV, STATS_COLUMNS)
             self.frames, self.last_frame_time, self.solver_maxed = 0, None, 0
             self.last_checkpoint_time = 0.0
@@ -280,7 +285,8 @@ class OutputFolder:
                          "pressure": lambda: sim.pressures.astype(np.float32),
                          "mass": lambda: sim.masses.astype(np.float32),
                          "id": lambda: sim.ids}[f]()
-        out_io.vtu.write_particles(self.out / name, sim.positions.astype(np.float32), fields, sim.time)
+        out_io.vtu.write_particles(self.out / name, sim.positions.astype(np.float32), fields, sim.time,
+                                   field_data=self.field_data)
         self._surfaces_done()  # listed by the same .pvd rewrite as the frame
         self.pvd.add(sim.time, name)
         t1 = time.perf_counter()
@@ -492,6 +498,7 @@ def _run(scene: Scene, opts: RunOptions, resume, renderer, surfacer=None) -> int
                     wall_seconds=time.perf_counter() - t0, finished=time.strftime("%Y-%m-%dT%H:%M:%S%z"))
         try:
             _write_info(out, info, sim, folder)
+            paraview.write_view_script(out)
         except IpsphError as exc:  # e.g. the disk is still full: say so, keep the run's exit code
             print(f"ipsph: warning: {exc}", file=sys.stderr)
     if status == "completed" and progress is not None:

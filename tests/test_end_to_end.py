@@ -36,7 +36,8 @@ def test_default_scene_writes_a_readable_series(default_run):
     assert np.allclose(np.diff(times), 0.04, atol=1e-9)  # frames land exactly on output times
     reader.set_active_time_value(times[-1])
     mb = reader.read()
-    assert mb.n_blocks == 2  # part 0 fluid, part 1 boundary
+    assert mb.n_blocks == 3  # fluid, boundary particles, wall surface (run.pvd's parts, named in ParaView)
+    assert mb[2].n_cells > 0 and mb[2].bounds == pytest.approx(mb[1].bounds, abs=0.05)  # walls sampled on it
     run = read_run_json(out / "run.json")
     assert run["completed"] and run["status"] == "completed"
     # the wall fit (method.md section 1): the rest lattice read up to +14 % with Akinci's volumes
