@@ -18,8 +18,7 @@ from ipsph.benchmark.scenes import (PIPELINES, pipeline_path, resolve_scene, sca
 from ipsph.cli import main as cli_main
 from ipsph.errors import ConfigError
 
-STOCK = Path("/work/shared/anchors/splishsplash/Scenes")
-DRAGON = Path(__file__).resolve().parents[1] / "pipelines" / "../../shared/anchors/splishsplash/models/Dragon_50k.obj"
+STOCK = Path(__file__).resolve().parent / "data" / "splishsplash" / "Scenes"  # copied in, with provenance
 
 
 # -- the worker --------------------------------------------------------------------------------------
@@ -229,7 +228,6 @@ def test_scaling_peer_scene_is_the_same_dam_break(tmp_path):
     assert meshes.signed_volume(tri) == pytest.approx(np.prod(np.subtract(tank.box_max, tank.box_min)), rel=1e-12)
 
 
-@pytest.mark.skipif(not STOCK.is_dir(), reason="SPlisHSPlasH stock scenes not in this checkout")
 def test_resolve_scene_names_and_errors(tmp_path):
     assert resolve_scene("DamBreakModel", STOCK) == (STOCK / "DamBreakModel.json").resolve()
     assert resolve_scene(str(STOCK / "DoubleDamBreak.json")).name == "DoubleDamBreak.json"
@@ -252,8 +250,6 @@ def test_pipelines_load_with_their_particle_counts(stem, count):
     from ipsph import sampling
     from ipsph.scene import load_scene
     assert stem in PIPELINES
-    if stem == "two_dragons" and not DRAGON.resolve().is_file():
-        pytest.skip(f"dragon mesh not in this checkout: {DRAGON.resolve()}")
     scene = load_scene(pipeline_path(stem))
     assert sum(len(sampling.fluid_positions(f, scene.particle_radius)) for f in scene.fluids) == count
     # first layer one spacing (2r) from the tank's min walls, the contract's load-bearing rule

@@ -41,8 +41,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scenes", nargs="+", metavar="SCENE", default=None,
                    help=f"scene files or stock scene names (default: {' '.join(DEFAULT_SCENES)})")
     p.add_argument("--scene-dir", type=Path, metavar="DIR",
-                   help="SPlisHSPlasH Scenes folder for scene names (default: shared/anchors/splishsplash/Scenes "
-                        "next to the repository or the current directory)")
+                   help="SPlisHSPlasH Scenes folder for scene names (default: $IPSPH_SPLISHSPLASH_SCENES, else "
+                        "the repository's copy in tests/data/splishsplash/Scenes)")
     p.add_argument("--methods", nargs="+", choices=OUR_METHODS, default=list(OUR_METHODS),
                    help="our methods to run (default: ipsph pf dfsph)")
     p.add_argument("--peer", action=argparse.BooleanOptionalAction, default=None,
@@ -80,7 +80,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="with --table1: which pipelines (default: all three)")
     p.add_argument("--dragon-mesh", type=Path, metavar="OBJ",
                    help="with --table1: SPlisHSPlasH's Dragon_50k.obj for both dragons of two_dragons.toml "
-                        "(default: the pipeline's relative path into shared/anchors/splishsplash/models)")
+                        "(default: the pipeline's meshes/Dragon_50k.obj)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="scene override for all our runs (repeatable), e.g. --set simulation.viscosity=0.02")
     p.add_argument("--markdown", action="store_true", help="print Markdown tables")
