@@ -48,6 +48,8 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--max-particles", type=int, metavar="N",
                    help="refuse scenes estimated above N fluid particles (default: from available memory)")
     r.add_argument("--quiet", action="store_true", help="no progress line")
+    r.add_argument("--yes", action="store_true",
+                   help="run a scene estimated to take over an hour even when not on a terminal")
 
     rd = sub.add_parser("render", help="render PNGs (and a video) of a finished or running output folder")
     rd.add_argument("out", type=Path, help="output folder of `ipsph run`")
@@ -87,7 +89,7 @@ def _run(args) -> int:
     out = args.output if args.output is not None else scene.output.folder
     opts = runner.RunOptions(out_dir=out, render=not args.no_render, overwrite=args.overwrite,
                              resume=args.resume, threads=args.threads, max_particles=args.max_particles,
-                             progress=False if args.quiet else None)
+                             progress=False if args.quiet else None, yes=args.yes)
     return runner.run(scene, opts)
 
 

@@ -13,6 +13,7 @@ import multiprocessing as mp
 import os
 import queue as queue_mod
 import signal
+import threading
 import time as _time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -89,7 +90,17 @@ class BackgroundRenderer:
         self._results = ctx.Queue()
         self._proc = ctx.Process(target=_worker, daemon=True, name="ipsph-render",
                                  args=(self._jobs, self._results))
-        self._proc.start()
+        # Ctrl-C in a terminal signals the whole process group. The parent decides what the worker
+        # does then (finish the frames in flight, or terminate() it), so the worker starts with
+        # SIGINT ignored: an interpreter that starts so installs no KeyboardInterrupt handler, and
+        # no traceback from the middle of a frame (or of its imports) reaches the terminal.
+        ignore = threading.current_thread() is threading.main_thread()
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if ignore else None
+        try:
+            self._proc.start()
+        finally:
+            if ignore:
+                signal.signal(signal.SIGINT, previous)
         self.rendered = 0
         self.submitted = 0
         self.ready = False       # the worker has its GL context and static layers

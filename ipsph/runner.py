@@ -34,6 +34,7 @@ STATS_COLUMNS = ("step", "time", "dt", "particles", "density_error_mean_pct", "d
                  "max_speed", "kinetic_energy", "dt_clamped", "solver_maxed", "ms_step") \
     + tuple(f"ms_{p}" for p in PHASES)
 BYTES_PER_PARTICLE = 1024  # the solver's budget per fluid particle (docs/performance.md)
+PROGRESS_EVERY_S = 10.0    # progress lines when stderr is not a terminal (a log file, a batch job)
 
 
 class Interrupted(Exception):
@@ -48,12 +49,15 @@ class RunOptions:
     resume: bool = False
     threads: int | None = None
     max_particles: int | None = None
-    progress: bool | None = None   # None: only on a TTY
+    progress: bool | None = None   # None: live on a TTY, else one line every PROGRESS_EVERY_S
+    yes: bool = False              # run even when the estimate says hours and no one is at a terminal
 
 
 # -- checks before any allocation ------------------------------------------------------------------
 def check_output_folder(out: Path, overwrite: bool, resume: bool) -> None:
-    """Refuse an unwritable folder, or one holding an earlier run (unless overwrite/resume)."""
+    """Refuse an unwritable folder, or one holding an earlier run (unless overwrite/resume).
+    Creates and deletes nothing: a refused run leaves no trace (`prepare_output_folder` does that
+    once every check has passed)."""
     out = out.expanduser()
     if out.exists() and not out.is_dir():
         raise OutputError(f"output folder {out} (resolved {out.resolve()}) is a file; choose another -o")
@@ -63,6 +67,23 @@ def check_output_folder(out: Path, overwrite: bool, resume: bool) -> None:
     if resume and not (out / out_io.RUN_JSON).exists():
         raise OutputError(f"--resume: output folder {out} (resolved {out.resolve()}) holds no earlier run "
                           f"to continue; run without --resume")
+    existing = out.resolve()
+    while not existing.exists():  # the deepest folder that exists must let us create the rest
+        existing = existing.parent
+    if not existing.is_dir() or not os.access(existing, os.W_OK | os.X_OK):
+        raise OutputError(f"output folder {out} (resolved {out.resolve()}) is not writable: "
+                          f"{existing} is {'not a folder' if not existing.is_dir() else 'read-only'}")
+
+
+# Everything a run (and `ipsph render` / `ipsph plot` into it) writes: --overwrite removes all of it.
+WRITTEN_DIRS = (out_io.FRAMES_DIR, out_io.RENDERS_DIR, out_io.PLOTS_DIR)
+WRITTEN_FILES = (out_io.RUN_PVD, out_io.BOUNDARY_VTU, out_io.BOUNDARY_SURFACE, out_io.STATS_CSV,
+                 out_io.RUN_JSON, ckpt.CHECKPOINT_FILE, "video.mp4", "video.gif")
+
+
+def prepare_output_folder(out: Path, overwrite: bool, resume: bool) -> None:
+    """Create the folder, prove it writable, and with --overwrite remove the earlier run's files."""
+    out = out.expanduser()
     try:
         out.mkdir(parents=True, exist_ok=True)
         probe = out / f".ipsph-write-test-{os.getpid()}"
@@ -72,10 +93,9 @@ def check_output_folder(out: Path, overwrite: bool, resume: bool) -> None:
         raise OutputError(f"output folder {out} (resolved {out.resolve()}) is not writable: "
                           f"{exc.strerror or exc}") from exc
     if overwrite and not resume:
-        for name in (out_io.FRAMES_DIR, out_io.RENDERS_DIR, out_io.PLOTS_DIR):
+        for name in WRITTEN_DIRS:
             shutil.rmtree(out / name, ignore_errors=True)
-        for name in (out_io.RUN_PVD, out_io.BOUNDARY_VTU, out_io.BOUNDARY_SURFACE, out_io.STATS_CSV,
-                     out_io.RUN_JSON, "checkpoint.npz"):
+        for name in WRITTEN_FILES:
             (out / name).unlink(missing_ok=True)
 
 
@@ -112,18 +132,23 @@ def check_render_size(scene: Scene) -> None:
 
 def check_size(scene: Scene, max_particles: int | None) -> int:
     """Estimate the fluid count before sampling and refuse what would not fit (exit 2)."""
+    return check_fluid_count(scene.fluids, scene.particle_radius, max_particles)
+
+
+def check_fluid_count(fluids, radius: float, max_particles: int | None) -> int:
+    """The estimated fluid count of `fluids` at `radius`; ConfigError above the limit (default: memory)."""
     from . import sampling
     from .errors import ConfigError
     limit = max_particles or default_max_particles()
     total = 0
-    for spec in scene.fluids:
-        n = sampling.estimate_fluid_count(spec, scene.particle_radius)
+    for spec in fluids:
+        n = sampling.estimate_fluid_count(spec, radius)
         total += n
         if total > limit:
             ext = _extent_hint(spec)
             raise ConfigError(
                 f"fluid '{spec.name}' would need about {total:,} particles ({total * BYTES_PER_PARTICLE / 2**30:.1f} GiB) "
-                f"at particle_radius {scene.particle_radius} m, over the limit of {limit:,} (--max-particles){ext}")
+                f"at particle_radius {radius} m, over the limit of {limit:,} (--max-particles){ext}")
     return total
 
 
@@ -205,7 +230,10 @@ class OutputFolder:
                                                   truncate_after_step=resume.steps)
         self.surface = self._write_surface()
         self.renderer = self._configure_renderer(renderer) if renderer is not None else None
+        if resume is not None and scene.render.enabled:
+            self._render_missing()
         self.progress = progress
+        self._first_step, self._progress_at = None, 0.0
         self.t_start = time.perf_counter()
         self.steps_start = sim.steps
         self.render_seconds = 0.0
@@ -223,6 +251,28 @@ class OutputFolder:
         for folder in (self.out, self.out / out_io.FRAMES_DIR, self.out / out_io.RENDERS_DIR):
             for f in folder.glob(".*.tmp"):
                 f.unlink(missing_ok=True)
+
+    def _render_missing(self) -> None:
+        """On --resume: the earlier frames without a render (an interrupt, or renders skipped, cut their
+        renders short) are queued first, from their VTU files; without a renderer or a stored
+        velocity field, one line says how to make them."""
+        missing = [k for k in range(self.frames)
+                   if not (self.out / out_io.RENDERS_DIR / f"frame_{k:06d}.png").is_file()]
+        if not missing:
+            return
+        if self.renderer is not None and "velocity" in self.fields:
+            for k in missing:
+                x, fields, t = out_io.vtu.read_particles(self.out / out_io.frame_file(k))
+                png = self.out / out_io.RENDERS_DIR / f"frame_{k:06d}.png"
+                if not self.renderer.submit(x, fields["velocity"], png, float(t or 0.0)):
+                    self._render_failed()
+                    break
+            else:
+                print(f"ipsph: note: rendering the {len(missing)} earlier frames that have no render "
+                      f"({out_io.RENDERS_DIR}/frame_{missing[0]:06d}.png ...)", file=sys.stderr)
+                return
+        print(f"ipsph: note: {len(missing)} earlier frames have no render; `ipsph render {self.out}` "
+              f"makes them", file=sys.stderr)
 
     def checkpoint(self, sim: Simulation) -> None:
         """Write OUT/checkpoint.npz (atomically) with everything a bit-identical resume needs."""
@@ -301,18 +351,37 @@ class OutputFolder:
         self.solver_maxed += s.solver_maxed
         self.stats.write(row)
         if self.progress:
-            end = self.scene.end_time
-            rate = (s.step - self.steps_start) / max(time.perf_counter() - self.t_start, 1e-9)
-            sys.stderr.write(f"\r  t = {s.time:7.3f} / {end:.3f} s  frame {self.frames:4d}  step {s.step:6d}  "
-                             f"density error {100 * s.density_error_mean:.3f} %  {rate:6.1f} steps/s ")
-            sys.stderr.flush()
+            self._progress(s)
         if _STOP["signal"]:
             raise Interrupted()
 
-    def _render_failed(self) -> None:
+    def _progress(self, s: StepStats) -> None:
+        """The live line on a terminal (every step); elsewhere one line every PROGRESS_EVERY_S.
+        The ETA is the run's own rate since its first step (which holds the JIT compilation)."""
+        from .estimate import eta_seconds, fmt_duration
+        now = time.perf_counter()
+        if self._first_step is None:
+            self._first_step = (now, s.time, s.step)
+            self._progress_at = now
+        tty = self.progress is True
+        if not tty and now - self._progress_at < PROGRESS_EVERY_S:
+            return
+        self._progress_at = now
+        end = self.scene.end_time
+        w0, t0, k0 = self._first_step
+        rate = (s.step - k0) / max(now - w0, 1e-9)
+        eta = fmt_duration(eta_seconds(s.time, end, t0, now - w0)) if s.step > k0 else "?"
+        line = (f"t = {s.time:7.3f} / {end:.3f} s ({100 * s.time / end:3.0f} %)  ETA {eta:>6}  "
+                f"frame {self.frames:4d}  step {s.step:6d}  density error {100 * s.density_error_mean:.3f} %  "
+                f"{rate:6.1f} steps/s")
+        sys.stderr.write(f"\r  {line} " if tty else f"ipsph: {line}\n")
+        sys.stderr.flush()
+
+    def _render_failed(self, running: bool = True) -> None:
         why = self.renderer.error or "the render process stopped"
         if self.renderer.ready:
-            print(f"\nipsph: warning: renders stopped ({why}); the simulation carries on", file=sys.stderr)
+            carries_on = "; the simulation carries on" if running and not _STOP["signal"] else ""
+            print(f"\nipsph: warning: renders stopped ({why}){carries_on}", file=sys.stderr)
         else:
             print(f"\nipsph: warning: renders skipped: {why}", file=sys.stderr)
         self.info["render"] = {**self.info.get("render", {}), "enabled": False, "skipped": why}
@@ -320,7 +389,7 @@ class OutputFolder:
         self.renderer = None
 
     def close(self) -> None:
-        if self.progress:
+        if self.progress is True:
             sys.stderr.write("\n")
         self.stats.close()
         if self.renderer is not None:
@@ -339,7 +408,7 @@ class OutputFolder:
                 return
             self.render_seconds += time.perf_counter() - t0
             if self.renderer.error:
-                self._render_failed()
+                self._render_failed(running=False)
 
 
 _STOP = {"signal": None}
@@ -360,11 +429,18 @@ def run(scene: Scene, opts: RunOptions) -> int:
     check_output_folder(out, opts.overwrite, opts.resume)
     resume = _load_resume(out, scene) if opts.resume else None
     if resume is None:
-        check_size(scene, opts.max_particles)  # first: it also runs the mesh checks (open, zero volume)
+        n_fluid = check_size(scene, opts.max_particles)  # first: it also runs the mesh checks (open, zero volume)
         check_geometry(scene)
+        from . import estimate
+        threads = opts.threads or int(os.environ.get("NUMBA_NUM_THREADS", 0)) or len(os.sched_getaffinity(0))
+        estimate.announce(scene, n_fluid, threads, yes=opts.yes,
+                          interactive=sys.stdin.isatty() and sys.stderr.isatty(),
+                          log=lambda line: print(line, file=sys.stderr))
     renderer = None
-    if opts.render and scene.render.enabled:  # start it now: it imports VTK while we sample
+    if opts.render and scene.render.enabled:
         check_render_size(scene)
+    prepare_output_folder(out, opts.overwrite, opts.resume)  # every check passed: now create/clear
+    if opts.render and scene.render.enabled:  # start it now: it imports VTK while we sample
         from .render_worker import BackgroundRenderer
         renderer = BackgroundRenderer()
     try:
@@ -415,7 +491,7 @@ def _run(scene: Scene, opts: RunOptions, resume, renderer) -> int:
         now = info["started"]
         info.update(_previous_info(out))
         info["resumed"] = info.get("resumed", []) + [{"time": resume.time, "step": resume.steps, "at": now}]
-    progress = sys.stderr.isatty() if opts.progress is None else opts.progress
+    progress = (sys.stderr.isatty() or "log") if opts.progress is None else opts.progress
     folder = OutputFolder(out, sim, scene, info, renderer, progress, resume)
     info["setup_seconds"] = time.perf_counter() - t_setup
     _write_info(out, info, sim, folder)
