@@ -87,9 +87,15 @@ def _run(args) -> int:
         overrides.append("output.every_step=true")
     scene = load_scene(args.scene if args.scene is not None else default_scene_path(), overrides)
     out = args.output if args.output is not None else scene.output.folder
+    try:  # the summary's total counts from the process start: interpreter, imports, scene loading
+        import psutil
+        import time
+        started = time.perf_counter() - max(time.time() - psutil.Process().create_time(), 0.0)
+    except Exception:  # pragma: no cover - psutil is a dependency
+        started = None
     opts = runner.RunOptions(out_dir=out, render=not args.no_render, overwrite=args.overwrite,
                              resume=args.resume, threads=args.threads, max_particles=args.max_particles,
-                             progress=False if args.quiet else None, yes=args.yes)
+                             progress=False if args.quiet else None, yes=args.yes, started=started)
     return runner.run(scene, opts)
 
 

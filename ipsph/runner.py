@@ -51,6 +51,7 @@ class RunOptions:
     max_particles: int | None = None
     progress: bool | None = None   # None: live on a TTY, else one line every PROGRESS_EVERY_S
     yes: bool = False              # run even when the estimate says hours and no one is at a terminal
+    started: float | None = None   # time.perf_counter() when the process started (the CLI: its imports count)
 
 
 # -- checks before any allocation ------------------------------------------------------------------
@@ -234,6 +235,7 @@ class OutputFolder:
             self._render_missing()
         self.progress = progress
         self._first_step, self._progress_at = None, 0.0
+        self.max_speed = 0.0
         self.t_start = time.perf_counter()
         self.steps_start = sim.steps
         self.render_seconds = 0.0
@@ -344,11 +346,12 @@ class OutputFolder:
                "divergence_iterations": s.divergence_iterations, "density_iterations": s.density_iterations,
                "max_speed": s.max_speed, "kinetic_energy": s.kinetic_energy, "dt_clamped": s.dt_clamped,
                "solver_maxed": s.solver_maxed, "ms_step": 1000 * s.timings.get("step", 0.0)}
-        for p in PHASES:
-            row[f"ms_{p}"] = 1000 * s.timings.get(p, 0.0)
+        for p in PHASES:  # empty for a phase this method does not have (not a timing of 0 ms)
+            row[f"ms_{p}"] = 1000 * s.timings[p] if p in s.timings else None
         for p, v in s.timings.items():
             self.timings.setdefault(p, []).append(1000 * v)
         self.solver_maxed += s.solver_maxed
+        self.max_speed = max(self.max_speed, float(s.max_speed))
         self.stats.write(row)
         if self.progress:
             self._progress(s)
@@ -423,8 +426,49 @@ def _asdict(obj):
     return to_jsonable(obj)
 
 
+class RunClock:
+    """Where a run's wall time goes: Numba's compilation (its "numba:compile" events: compiling,
+    not loading from the cache) counted apart from the phase it happens in."""
+
+    def __init__(self, begin: float | None = None):
+        from numba.core import event
+        self.begin = time.perf_counter() if begin is None else begin
+        self.loop_begin = None
+        self.compile_before_loop = 0.0
+        self._event, self._timer = event, event.TimingListener()
+        event.register("numba:compile", self._timer)
+
+    @property
+    def compile_seconds(self) -> float:
+        return self._timer.duration if self._timer.done else 0.0
+
+    def start_loop(self) -> None:
+        self.loop_begin = time.perf_counter()
+        self.compile_before_loop = self.compile_seconds
+
+    def close(self) -> None:
+        self._event.unregister("numba:compile", self._timer)
+
+    def split(self, loop_seconds: float, render_wait: float) -> dict:
+        """total = setup + compile + stepping + waiting for renders (seconds)."""
+        total = time.perf_counter() - self.begin
+        before = (self.loop_begin or self.begin) - self.begin
+        compile_loop = self.compile_seconds - self.compile_before_loop
+        return {"total": total, "setup": max(before - self.compile_before_loop, 0.0),
+                "compile": self.compile_seconds,
+                "stepping": max(loop_seconds - compile_loop - render_wait, 0.0), "renders": render_wait}
+
+
 def run(scene: Scene, opts: RunOptions) -> int:
     """Run `scene` into `opts.out_dir`; returns the exit code (errors before the run raise)."""
+    clock = RunClock(opts.started)
+    try:
+        return _checked_run(scene, opts, clock)
+    finally:
+        clock.close()
+
+
+def _checked_run(scene: Scene, opts: RunOptions, clock: RunClock) -> int:
     out = opts.out_dir
     check_output_folder(out, opts.overwrite, opts.resume)
     resume = _load_resume(out, scene) if opts.resume else None
@@ -444,14 +488,14 @@ def run(scene: Scene, opts: RunOptions) -> int:
         from .render_worker import BackgroundRenderer
         renderer = BackgroundRenderer()
     try:
-        return _run(scene, opts, resume, renderer)
+        return _run(scene, opts, resume, renderer, clock)
     except BaseException:
         if renderer is not None:
             renderer.terminate()
         raise
 
 
-def _run(scene: Scene, opts: RunOptions, resume, renderer) -> int:
+def _run(scene: Scene, opts: RunOptions, resume, renderer, clock: RunClock) -> int:
     from .scene import scene_to_dict
     out = opts.out_dir
     import numba
@@ -498,6 +542,7 @@ def _run(scene: Scene, opts: RunOptions, resume, renderer) -> int:
     old = {s: signal.signal(s, _on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     _STOP["signal"] = None
     code, status = EXIT_OK, "completed"
+    clock.start_loop()
     t0 = time.perf_counter()
     try:
         try:
@@ -523,12 +568,19 @@ def _run(scene: Scene, opts: RunOptions, resume, renderer) -> int:
         folder.close()
         info.update(status=status, completed=status == "completed", exit_code=code,
                     wall_seconds=time.perf_counter() - t0, finished=time.strftime("%Y-%m-%dT%H:%M:%S%z"))
+        info["time_split_seconds"] = clock.split(info["wall_seconds"], folder.render_seconds)
+        info["compile_seconds"] = info["time_split_seconds"]["compile"]
         try:
             _write_info(out, info, sim, folder)
         except IpsphError as exc:  # e.g. the disk is still full: say so, keep the run's exit code
             print(f"ipsph: warning: {exc}", file=sys.stderr)
     if status == "completed" and progress is not None:
         _summary(out, sim, folder, info)
+    rng = (info.get("render") or {}).get("speed_range")
+    if rng and info["render"].get("enabled") and folder.max_speed > 1.05 * rng[1]:
+        print(f"ipsph: note: the fluid reached {folder.max_speed:.2f} m/s, above the renders' colour range "
+              f"{rng[0]:g}-{rng[1]:.2f} m/s (faster particles are white); `ipsph render {out} --speed-range 0 "
+              f"{math.ceil(folder.max_speed * 10) / 10:g}` re-renders with the full range", file=sys.stderr)
     if folder.solver_maxed and status != "failed":
         print(f"ipsph: warning: {folder.solver_maxed} solves stopped at their iteration cap before reaching the "
               f"tolerance (run.json solver_maxed, stats.csv solver_maxed); raise solver.*.max_iterations / "
@@ -571,9 +623,11 @@ def _write_info(out: Path, info: dict, sim: Simulation, folder: OutputFolder) ->
 
 
 def _summary(out: Path, sim: Simulation, folder: OutputFolder, info: dict) -> None:
-    wall = info["wall_seconds"]
-    per_sim = wall / sim.time if sim.time > 0 else math.nan
-    print(f"ipsph: {info['method']} {sim.n_fluid:,} fluid + {sim.n_boundary:,} boundary particles, "
-          f"{sim.steps} steps to t = {sim.time:.3g} s in {wall:.1f} s ({per_sim:.2f} s per simulated second), "
-          f"{folder.frames} frames in {out}/{out_io.RUN_PVD}"
+    sp = info["time_split_seconds"]
+    per_sim = sp["stepping"] / sim.time if sim.time > 0 else math.nan
+    renders = f", waiting for renders {sp['renders']:.1f} s" if folder.renderer is not None or sp["renders"] > 0.05 else ""
+    print(f"ipsph: done: {info['method'].upper()}, {sim.n_fluid:,} fluid + {sim.n_boundary:,} boundary particles, "
+          f"{sim.steps} steps to t = {sim.time:.3g} s, {folder.frames} frames in {out / out_io.RUN_PVD}"
           + (f"; {sim.clamped_steps} steps hit dt_min" if sim.clamped_steps else ""), file=sys.stderr)
+    print(f"ipsph: {sp['total']:.1f} s in all: setup {sp['setup']:.1f} s, compile {sp['compile']:.1f} s, "
+          f"stepping {sp['stepping']:.1f} s ({per_sim:.2f} s per simulated second){renders}", file=sys.stderr)

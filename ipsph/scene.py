@@ -182,8 +182,11 @@ PARAMS: tuple[Param, ...] = (
        "centre.", "render.focal_point", optional=True),
     _P("render.view_up", "vec3", None, "", "Camera up direction. auto: +y.", "render.view_up",
        optional=True),
-    _P("render.speed_range", "range2", None, "m/s", "Colour-map range of the speed. auto: "
-       "from the run.", "render.speed_range", lo=0.0, optional=True),
+    _P("render.speed_range", "range2", None, "m/s", "Colour-map range of the speed, fixed for the "
+       "series. auto: (0, sqrt(v0^2 + 2 g drop)), the speed of a fall from the fluid's top to the "
+       "floor, an estimate made before the run (splashes can exceed it: faster particles are drawn "
+       "white, and the run says how to re-render with its measured maximum).", "render.speed_range",
+       lo=0.0, optional=True),
     # -- [[fluid]] ------------------------------------------------------------------------------
     _P("fluid.name", "str", None, "", "Name of the body. Default: fluid<i> (i counts from 0).",
        "name"),

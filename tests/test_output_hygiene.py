@@ -161,3 +161,41 @@ def test_progress_lines_reach_a_log_file(tmp_path, capsys, monkeypatch):
     lines = [line for line in err.splitlines() if "ETA" in line]
     assert len(lines) >= 2, err
     assert "%" in lines[-1] and "/ 0.080 s" in lines[-1]
+
+
+# -- the summary, and the stats a method writes ----------------------------------------------------
+def test_the_summary_splits_the_wall_time(tmp_path, capsys):
+    out = tmp_path / "out"
+    code, err = run_cli(capsys, "-o", out, "--no-render", "--end-time", 0.08, *COARSE)
+    assert code == 0, err
+    assert "ipsph: ipsph" not in err
+    done = [line for line in err.splitlines() if line.startswith("ipsph: done: IPSPH, ")]
+    split = [line for line in err.splitlines() if " s in all: setup " in line]
+    assert len(done) == 1 and len(split) == 1, err
+    assert "compile" in split[0] and "stepping" in split[0]
+    from ipsph.io.provenance import read_run_json
+    sp = read_run_json(out / RUN_JSON)["time_split_seconds"]
+    parts = [sp[k] for k in ("setup", "compile", "stepping", "renders")]
+    assert all(v >= 0 for v in parts)
+    # the parts are disjoint pieces of the total (what is left: writing run.json, closing files)
+    assert 0.8 * sp["total"] <= sum(parts) <= sp["total"] * (1 + 1e-9)
+
+
+@pytest.mark.parametrize("method, absent", [("ipsph", ("densities", "densitySolve")),
+                                            ("pf", ("densities", "densitySolve", "divergenceSolve")),
+                                            ("dfsph", ("solvePDConstraints",))])
+def test_stats_leave_out_the_phases_a_method_lacks_and_errors_are_not_negative(tmp_path, capsys, method, absent):
+    import numpy as np
+    from ipsph.io.stats import read_stats
+    out = tmp_path / "out"
+    assert run_cli(capsys, "-o", out, "--no-render", "--end-time", 0.08, "--method", method, *COARSE)[0] == 0
+    s = read_stats(out / "stats.csv")
+    for phase in runner.PHASES:
+        col = s[f"ms_{phase}"]
+        if phase in absent:
+            assert np.all(np.isnan(col)), phase  # empty, not a timing of 0 ms
+        else:
+            assert np.all(np.isfinite(col)) and np.all(col >= 0), phase
+    # the dam break starts uncompressed (surface particles below rho0): the max is 0 there, not negative
+    assert np.all(s["density_error_max_pct"] >= 0)
+    assert np.all(s["density_error_max_pct"] >= s["density_error_mean_pct"] - 1e-12)
