@@ -435,6 +435,7 @@ class RunClock:
         self.begin = time.perf_counter() if begin is None else begin
         self.loop_begin = None
         self.compile_before_loop = 0.0
+        self.helper = None  # the jit_warm process of a cold start
         self._event, self._timer = event, event.TimingListener()
         event.register("numba:compile", self._timer)
 
@@ -448,6 +449,17 @@ class RunClock:
 
     def close(self) -> None:
         self._event.unregister("numba:compile", self._timer)
+
+    def after_first_step(self, on_step):
+        """`on_step`, stopping the compile helper (jit_warm) once the first step has run: every
+        kernel of the step is compiled or loaded by then, and the stepping gets both cores."""
+        def wrapped(s):
+            if self.helper is not None:
+                from . import jit_warm
+                jit_warm.stop(self.helper)
+                self.helper = None
+            on_step(s)
+        return wrapped
 
     def split(self, loop_seconds: float, render_wait: float) -> dict:
         """total = setup + compile + stepping + waiting for renders (seconds)."""
@@ -487,12 +499,16 @@ def _checked_run(scene: Scene, opts: RunOptions, clock: RunClock) -> int:
     if opts.render and scene.render.enabled:  # start it now: it imports VTK while we sample
         from .render_worker import BackgroundRenderer
         renderer = BackgroundRenderer()
+    from . import jit_warm
+    clock.helper = jit_warm.start(scene.method.value)  # cold Numba cache: compile on the other core too
     try:
         return _run(scene, opts, resume, renderer, clock)
     except BaseException:
         if renderer is not None:
             renderer.terminate()
         raise
+    finally:
+        jit_warm.stop(clock.helper)
 
 
 def _run(scene: Scene, opts: RunOptions, resume, renderer, clock: RunClock) -> int:
@@ -546,7 +562,7 @@ def _run(scene: Scene, opts: RunOptions, resume, renderer, clock: RunClock) -> i
     t0 = time.perf_counter()
     try:
         try:
-            sim.run(on_frame=folder.frame, on_step=folder.step)
+            sim.run(on_frame=folder.frame, on_step=clock.after_first_step(folder.step))
         except Interrupted:
             code, status = EXIT_INTERRUPTED, "interrupted"
             folder.frame(sim, -1)  # the final frame at the interrupt time
