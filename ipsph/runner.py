@@ -255,14 +255,14 @@ class OutputFolder:
                 f.unlink(missing_ok=True)
 
     def _render_missing(self) -> None:
-        """On --resume: the earlier frames without a render (an interrupt, or renders skipped, cut their
-        renders short) are queued first, from their VTU files; without a renderer or a stored
-        velocity field, one line says how to make them."""
+        """On --resume with renders: the earlier frames without a render (an interrupt, --no-render or a
+        missing GL stack cut them short) are queued first, from their VTU files; when the frames hold
+        no velocity field (or the renderer fails), one line says how to make them."""
         missing = [k for k in range(self.frames)
                    if not (self.out / out_io.RENDERS_DIR / f"frame_{k:06d}.png").is_file()]
-        if not missing:
+        if not missing or self.renderer is None:  # --no-render: no renders wanted now
             return
-        if self.renderer is not None and "velocity" in self.fields:
+        if "velocity" in self.fields:
             for k in missing:
                 x, fields, t = out_io.vtu.read_particles(self.out / out_io.frame_file(k))
                 png = self.out / out_io.RENDERS_DIR / f"frame_{k:06d}.png"
