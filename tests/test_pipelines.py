@@ -60,3 +60,30 @@ def test_nothing_shipped_points_outside_the_repository():
                 if "shared/anchors" in text or "../shared" in text:
                     offenders.append(str(f.relative_to(REPO)))
     assert offenders == []
+
+
+@pytest.mark.parametrize("folder", ["meshes", "tests/data/splishsplash"])
+def test_shipped_data_matches_its_provenance(folder):
+    """Every data file is listed in its folder's PROVENANCE.md with the sha256 it was copied (or
+    generated) with, and the listed files are exactly the ones there (a changed or added file fails)."""
+    import hashlib
+    import re
+    base = REPO / folder
+    text = (base / "PROVENANCE.md").read_text()
+    listed = {}
+    for line in text.splitlines():
+        m = re.match(r"\|\s*`?([\w./-]+\.(?:obj|json))`?\s*\|.*\|\s*([0-9a-f]{64})\s*\|$", line)
+        if m:
+            listed[m.group(1)] = m.group(2)
+    present = {str(p.relative_to(base)) for p in base.rglob("*") if p.suffix in (".obj", ".json")
+               and p.is_file() and not p.is_symlink() and "models" not in p.relative_to(base).parts}
+    assert present and set(listed) == present
+    for name, digest in listed.items():
+        assert hashlib.sha256((base / name).read_bytes()).hexdigest() == digest, name
+
+
+def test_shipped_meshes_are_closed_solids():
+    from ipsph import meshes
+    for path in sorted((REPO / "meshes").glob("*.obj")):
+        mesh, report = meshes.prepare_mesh(path)
+        assert report.closed and report.volume > 0, path.name
