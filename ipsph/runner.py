@@ -35,6 +35,7 @@ STATS_COLUMNS = ("step", "time", "dt", "particles", "density_error_mean_pct", "d
     + tuple(f"ms_{p}" for p in PHASES)
 BYTES_PER_PARTICLE = 1024  # the solver's budget per fluid particle (docs/performance.md)
 PROGRESS_EVERY_S = 10.0    # progress lines when stderr is not a terminal (a log file, a batch job)
+INTERRUPT_RENDER_WAIT_S = 10.0  # after Ctrl-C the frames in flight get this long to render; --resume does the rest
 
 
 class Interrupted(Exception):
@@ -391,14 +392,14 @@ class OutputFolder:
         self.renderer.terminate()
         self.renderer = None
 
-    def close(self) -> None:
+    def close(self, interrupted: bool = False) -> None:
         if self.progress is True:
             sys.stderr.write("\n")
         self.stats.close()
         if self.renderer is not None:
             t0 = time.perf_counter()
             try:
-                self.renderer.close(notice=lambda n: print(
+                self.renderer.close(timeout=INTERRUPT_RENDER_WAIT_S if interrupted else None, notice=lambda n: print(
                     f"ipsph: rendering the last {n} frames (Ctrl-C skips them; `ipsph render {self.out}` "
                     f"makes them later)", file=sys.stderr))  # the frames still in flight
             except KeyboardInterrupt:
@@ -410,7 +411,14 @@ class OutputFolder:
                 self.renderer = None
                 return
             self.render_seconds += time.perf_counter() - t0
-            if self.renderer.error:
+            left = self.renderer.backlog
+            if interrupted and left > 0:  # stopped after INTERRUPT_RENDER_WAIT_S: the user asked to stop
+                print(f"ipsph: note: {left} frames were not rendered before the interrupt; --resume renders "
+                      f"them first (or `ipsph render {self.out}`)", file=sys.stderr)
+                self.info["render"] = {**self.info.get("render", {}), "interrupted": True}
+                self.renderer = None
+                return
+            if self.renderer.error and not interrupted:  # (on an interrupt: our own stop, or --resume retries)
                 self._render_failed(running=False)
 
 
@@ -581,7 +589,7 @@ def _run(scene: Scene, opts: RunOptions, resume, renderer, clock: RunClock) -> i
     finally:
         for s, h in old.items():
             signal.signal(s, h)
-        folder.close()
+        folder.close(interrupted=status == "interrupted")
         info.update(status=status, completed=status == "completed", exit_code=code,
                     wall_seconds=time.perf_counter() - t0, finished=time.strftime("%Y-%m-%dT%H:%M:%S%z"))
         info["time_split_seconds"] = clock.split(info["wall_seconds"], folder.render_seconds)

@@ -119,7 +119,10 @@ def test_ctrl_c_prints_one_line_and_no_traceback(tmp_path, gl):
     assert sum("interrupted" in line for line in lines) == 1, err
     assert "carries on" not in err, err
     frames = len(PvdSeries.load(out / RUN_PVD).frames)
-    assert len(list((out / "renders").glob("frame_*.png"))) == frames  # the frames in flight were rendered
+    rendered = len(list((out / "renders").glob("frame_*.png"))) if (out / "renders").is_dir() else 0
+    # the frames in flight get INTERRUPT_RENDER_WAIT_S to render; what is left is counted in one note
+    note = [line for line in lines if "were not rendered before the interrupt" in line]
+    assert rendered == frames if not note else int(note[0].split()[2]) == frames - rendered, err
 
 
 # -- size and time up front ------------------------------------------------------------------------
