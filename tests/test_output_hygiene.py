@@ -125,6 +125,33 @@ def test_ctrl_c_prints_one_line_and_no_traceback(tmp_path, gl):
     assert rendered == frames if not note else int(note[0].split()[2]) == frames - rendered, err
 
 
+def test_the_render_process_does_not_outlive_a_killed_run(tmp_path, gl):
+    """It ignores SIGINT (the run decides), so a run killed outright (SIGKILL) must not leave it behind."""
+    import psutil
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, "-m", "ipsph", "run", "-o", str(out), "--threads", "1",
+                             "--end-time", "20", *SMALL_RENDER], stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL, start_new_session=True)
+    children = []
+    try:
+        deadline = time.monotonic() + 300
+        while not (out / "frames" / "fluid_000001.vtu").exists():
+            assert proc.poll() is None and time.monotonic() < deadline
+            time.sleep(0.1)
+        children = psutil.Process(proc.pid).children(recursive=True)
+        assert any("spawn_main" in " ".join(c.cmdline()) for c in children)  # the render process is there
+        proc.kill()
+        proc.wait(30)
+        _, alive = psutil.wait_procs(children, timeout=20)
+        assert alive == [], [" ".join(c.cmdline()) for c in alive]
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        for c in children:
+            if c.is_running():
+                c.kill()
+
+
 # -- size and time up front ------------------------------------------------------------------------
 def test_the_particle_count_is_checked_before_the_time_step(tmp_path, capsys):
     """At r = 0.1 mm the auto dt_max (5 ms * r / 25 mm = 20 us) is below dt_min as well; the count
