@@ -50,6 +50,8 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--max-particles", type=int, metavar="N",
                    help="refuse scenes estimated above N fluid particles (default: from available memory)")
     r.add_argument("--quiet", action="store_true", help="no progress line")
+    r.add_argument("--yes", action="store_true",
+                   help="run a scene estimated to take over an hour even when not on a terminal")
 
     rd = sub.add_parser("render", help="render PNGs (and a video) of a finished or running output folder")
     rd.add_argument("out", type=Path, help="output folder of `ipsph run`")
@@ -110,9 +112,15 @@ def _run(args) -> int:
         overrides.append("output.surface=true")
     scene = load_scene(args.scene if args.scene is not None else default_scene_path(), overrides)
     out = args.output if args.output is not None else scene.output.folder
+    try:  # the summary's total counts from the process start: interpreter, imports, scene loading
+        import psutil
+        import time
+        started = time.perf_counter() - max(time.time() - psutil.Process().create_time(), 0.0)
+    except Exception:  # pragma: no cover - psutil is a dependency
+        started = None
     opts = runner.RunOptions(out_dir=out, render=not args.no_render, overwrite=args.overwrite,
                              resume=args.resume, threads=args.threads, max_particles=args.max_particles,
-                             progress=False if args.quiet else None)
+                             progress=False if args.quiet else None, yes=args.yes, started=started)
     return runner.run(scene, opts)
 
 

@@ -35,6 +35,8 @@ STATS_COLUMNS = ("step", "time", "dt", "particles", "density_error_mean_pct", "d
                  "max_speed", "kinetic_energy", "dt_clamped", "solver_maxed", "ms_step") \
     + tuple(f"ms_{p}" for p in PHASES)
 BYTES_PER_PARTICLE = 1024  # the solver's budget per fluid particle (docs/performance.md)
+PROGRESS_EVERY_S = 10.0    # progress lines when stderr is not a terminal (a log file, a batch job)
+INTERRUPT_RENDER_WAIT_S = 10.0  # after Ctrl-C the frames in flight get this long to render; --resume does the rest
 
 
 class Interrupted(Exception):
@@ -49,13 +51,17 @@ class RunOptions:
     resume: bool = False
     threads: int | None = None
     max_particles: int | None = None
-    progress: bool | None = None   # None: only on a TTY
+    progress: bool | None = None   # None: live on a TTY, else one line every PROGRESS_EVERY_S
+    yes: bool = False              # run even when the estimate says hours and no one is at a terminal
+    started: float | None = None   # time.perf_counter() when the process started (the CLI: its imports count)
     surface: bool | None = None    # None: the scene's output.surface (or render.mode = "surface")
 
 
 # -- checks before any allocation ------------------------------------------------------------------
 def check_output_folder(out: Path, overwrite: bool, resume: bool) -> None:
-    """Refuse an unwritable folder, or one holding an earlier run (unless overwrite/resume)."""
+    """Refuse an unwritable folder, or one holding an earlier run (unless overwrite/resume).
+    Creates and deletes nothing: a refused run leaves no trace (`prepare_output_folder` does that
+    once every check has passed)."""
     out = out.expanduser()
     if out.exists() and not out.is_dir():
         raise OutputError(f"output folder {out} (resolved {out.resolve()}) is a file; choose another -o")
@@ -65,6 +71,24 @@ def check_output_folder(out: Path, overwrite: bool, resume: bool) -> None:
     if resume and not (out / out_io.RUN_JSON).exists():
         raise OutputError(f"--resume: output folder {out} (resolved {out.resolve()}) holds no earlier run "
                           f"to continue; run without --resume")
+    existing = out.resolve()
+    while not existing.exists():  # the deepest folder that exists must let us create the rest
+        existing = existing.parent
+    if not existing.is_dir() or not os.access(existing, os.W_OK | os.X_OK):
+        raise OutputError(f"output folder {out} (resolved {out.resolve()}) is not writable: "
+                          f"{existing} is {'not a folder' if not existing.is_dir() else 'read-only'}")
+
+
+# Everything a run (and `ipsph render` / `ipsph plot` into it) writes: --overwrite removes all of it.
+WRITTEN_DIRS = (out_io.FRAMES_DIR, out_io.RENDERS_DIR, out_io.PLOTS_DIR, out_io.SURFACES_DIR)
+WRITTEN_FILES = (out_io.RUN_PVD, out_io.BOUNDARY_VTU, out_io.BOUNDARY_SURFACE, out_io.STATS_CSV,
+                 out_io.RUN_JSON, ckpt.CHECKPOINT_FILE, "video.mp4", "video.gif", out_io.PARAVIEW_SCRIPT,
+                 *(p.series for p in out_io.PARTS if p.series))
+
+
+def prepare_output_folder(out: Path, overwrite: bool, resume: bool) -> None:
+    """Create the folder, prove it writable, and with --overwrite remove the earlier run's files."""
+    out = out.expanduser()
     try:
         out.mkdir(parents=True, exist_ok=True)
         probe = out / f".ipsph-write-test-{os.getpid()}"
@@ -74,11 +98,9 @@ def check_output_folder(out: Path, overwrite: bool, resume: bool) -> None:
         raise OutputError(f"output folder {out} (resolved {out.resolve()}) is not writable: "
                           f"{exc.strerror or exc}") from exc
     if overwrite and not resume:
-        for name in (out_io.FRAMES_DIR, out_io.RENDERS_DIR, out_io.PLOTS_DIR, out_io.SURFACES_DIR):
+        for name in WRITTEN_DIRS:
             shutil.rmtree(out / name, ignore_errors=True)
-        for name in (out_io.RUN_PVD, out_io.BOUNDARY_VTU, out_io.BOUNDARY_SURFACE, out_io.STATS_CSV,
-                     out_io.RUN_JSON, "checkpoint.npz", out_io.PARAVIEW_SCRIPT,
-                     *(p.series for p in out_io.PARTS if p.series)):
+        for name in WRITTEN_FILES:
             (out / name).unlink(missing_ok=True)
 
 
@@ -115,18 +137,23 @@ def check_render_size(scene: Scene) -> None:
 
 def check_size(scene: Scene, max_particles: int | None) -> int:
     """Estimate the fluid count before sampling and refuse what would not fit (exit 2)."""
+    return check_fluid_count(scene.fluids, scene.particle_radius, max_particles)
+
+
+def check_fluid_count(fluids, radius: float, max_particles: int | None) -> int:
+    """The estimated fluid count of `fluids` at `radius`; ConfigError above the limit (default: memory)."""
     from . import sampling
     from .errors import ConfigError
     limit = max_particles or default_max_particles()
     total = 0
-    for spec in scene.fluids:
-        n = sampling.estimate_fluid_count(spec, scene.particle_radius)
+    for spec in fluids:
+        n = sampling.estimate_fluid_count(spec, radius)
         total += n
         if total > limit:
             ext = _extent_hint(spec)
             raise ConfigError(
                 f"fluid '{spec.name}' would need about {total:,} particles ({total * BYTES_PER_PARTICLE / 2**30:.1f} GiB) "
-                f"at particle_radius {scene.particle_radius} m, over the limit of {limit:,} (--max-particles){ext}")
+                f"at particle_radius {radius} m, over the limit of {limit:,} (--max-particles){ext}")
     return total
 
 
@@ -217,7 +244,11 @@ class OutputFolder:
             clip = container_bounds(scene.boundaries)
             surfacer.configure(out, scene.particle_radius, scene.density0, scene.surface, clip)
             self.info["surface"] = {"enabled": True, **_asdict(scene.surface), "clip_bounds": clip}
+        if resume is not None and scene.render.enabled:
+            self._render_missing()
         self.progress = progress
+        self._first_step, self._progress_at = None, 0.0
+        self.max_speed = 0.0
         self.t_start = time.perf_counter()
         self.steps_start = sim.steps
         self.render_seconds = 0.0
@@ -237,6 +268,28 @@ class OutputFolder:
                        self.out / out_io.SURFACES_DIR):
             for f in folder.glob(".*.tmp"):
                 f.unlink(missing_ok=True)
+
+    def _render_missing(self) -> None:
+        """On --resume with renders: the earlier frames without a render (an interrupt, --no-render or a
+        missing GL stack cut them short) are queued first, from their VTU files; when the frames hold
+        no velocity field (or the renderer fails), one line says how to make them."""
+        missing = [k for k in range(self.frames)
+                   if not (self.out / out_io.RENDERS_DIR / f"frame_{k:06d}.png").is_file()]
+        if not missing or self.renderer is None:  # --no-render: no renders wanted now
+            return
+        if "velocity" in self.fields:
+            for k in missing:
+                x, fields, t = out_io.vtu.read_particles(self.out / out_io.frame_file(k))
+                png = self.out / out_io.RENDERS_DIR / f"frame_{k:06d}.png"
+                if not self.renderer.submit(x, fields["velocity"], png, float(t or 0.0)):
+                    self._render_failed()
+                    break
+            else:
+                print(f"ipsph: note: rendering the {len(missing)} earlier frames that have no render "
+                      f"({out_io.RENDERS_DIR}/frame_{missing[0]:06d}.png ...)", file=sys.stderr)
+                return
+        print(f"ipsph: note: {len(missing)} earlier frames have no render; `ipsph render {self.out}` "
+              f"makes them", file=sys.stderr)
 
     def checkpoint(self, sim: Simulation) -> None:
         """Write OUT/checkpoint.npz (atomically) with everything a bit-identical resume needs."""
@@ -312,18 +365,15 @@ class OutputFolder:
                "divergence_iterations": s.divergence_iterations, "density_iterations": s.density_iterations,
                "max_speed": s.max_speed, "kinetic_energy": s.kinetic_energy, "dt_clamped": s.dt_clamped,
                "solver_maxed": s.solver_maxed, "ms_step": 1000 * s.timings.get("step", 0.0)}
-        for p in PHASES:
-            row[f"ms_{p}"] = 1000 * s.timings.get(p, 0.0)
+        for p in PHASES:  # empty for a phase this method does not have (not a timing of 0 ms)
+            row[f"ms_{p}"] = 1000 * s.timings[p] if p in s.timings else None
         for p, v in s.timings.items():
             self.timings.setdefault(p, []).append(1000 * v)
         self.solver_maxed += s.solver_maxed
+        self.max_speed = max(self.max_speed, float(s.max_speed))
         self.stats.write(row)
         if self.progress:
-            end = self.scene.end_time
-            rate = (s.step - self.steps_start) / max(time.perf_counter() - self.t_start, 1e-9)
-            sys.stderr.write(f"\r  t = {s.time:7.3f} / {end:.3f} s  frame {self.frames:4d}  step {s.step:6d}  "
-                             f"density error {100 * s.density_error_mean:.3f} %  {rate:6.1f} steps/s ")
-            sys.stderr.flush()
+            self._progress(s)
         if _STOP["signal"]:
             raise Interrupted()
 
@@ -346,18 +396,41 @@ class OutputFolder:
         self.info["surface"] = {**self.info.get("surface", {}), **self.surfacer.summary()}
         self.surfacer = None
 
-    def _render_failed(self) -> None:
+    def _progress(self, s: StepStats) -> None:
+        """The live line on a terminal (every step); elsewhere one line every PROGRESS_EVERY_S.
+        The ETA is the run's own rate since its first step (which holds the JIT compilation)."""
+        from .estimate import eta_seconds, fmt_duration
+        now = time.perf_counter()
+        if self._first_step is None:
+            self._first_step = (now, s.time, s.step)
+            self._progress_at = now
+        tty = self.progress is True
+        if not tty and now - self._progress_at < PROGRESS_EVERY_S:
+            return
+        self._progress_at = now
+        end = self.scene.end_time
+        w0, t0, k0 = self._first_step
+        rate = (s.step - k0) / max(now - w0, 1e-9)
+        eta = fmt_duration(eta_seconds(s.time, end, t0, now - w0)) if s.step > k0 else "?"
+        line = (f"t = {s.time:7.3f} / {end:.3f} s ({100 * s.time / end:3.0f} %)  ETA {eta:>6}  "
+                f"frame {self.frames:4d}  step {s.step:6d}  density error {100 * s.density_error_mean:.3f} %  "
+                f"{rate:6.1f} steps/s")
+        sys.stderr.write(f"\r  {line} " if tty else f"ipsph: {line}\n")
+        sys.stderr.flush()
+
+    def _render_failed(self, running: bool = True) -> None:
         why = self.renderer.error or "the render process stopped"
         if self.renderer.ready:
-            print(f"\nipsph: warning: renders stopped ({why}); the simulation carries on", file=sys.stderr)
+            carries_on = "; the simulation carries on" if running and not _STOP["signal"] else ""
+            print(f"\nipsph: warning: renders stopped ({why}){carries_on}", file=sys.stderr)
         else:
             print(f"\nipsph: warning: renders skipped: {why}", file=sys.stderr)
         self.info["render"] = {**self.info.get("render", {}), "enabled": False, "skipped": why}
         self.renderer.terminate()
         self.renderer = None
 
-    def close(self) -> None:
-        if self.progress:
+    def close(self, interrupted: bool = False) -> None:
+        if self.progress is True:
             sys.stderr.write("\n")
         self.stats.close()
         if self.surfacer is not None:  # first: in surface mode its last surfaces still go to the renderer
@@ -365,7 +438,7 @@ class OutputFolder:
         if self.renderer is not None:
             t0 = time.perf_counter()
             try:
-                self.renderer.close(notice=lambda n: print(
+                self.renderer.close(timeout=INTERRUPT_RENDER_WAIT_S if interrupted else None, notice=lambda n: print(
                     f"ipsph: rendering the last {n} frames (Ctrl-C skips them; `ipsph render {self.out}` "
                     f"makes them later)", file=sys.stderr))  # the frames still in flight
             except KeyboardInterrupt:
@@ -377,8 +450,15 @@ class OutputFolder:
                 self.renderer = None
                 return
             self.render_seconds += time.perf_counter() - t0
-            if self.renderer.error:
-                self._render_failed()
+            left = self.renderer.backlog
+            if interrupted and left > 0:  # stopped after INTERRUPT_RENDER_WAIT_S: the user asked to stop
+                print(f"ipsph: note: {left} frames were not rendered before the interrupt; --resume renders "
+                      f"them first (or `ipsph render {self.out}`)", file=sys.stderr)
+                self.info["render"] = {**self.info.get("render", {}), "interrupted": True}
+                self.renderer = None
+                return
+            if self.renderer.error and not interrupted:  # (on an interrupt: our own stop, or --resume retries)
+                self._render_failed(running=False)
 
 
 _STOP = {"signal": None}
@@ -397,17 +477,77 @@ def _asdict(obj):
     return to_jsonable(obj)
 
 
+class RunClock:
+    """Where a run's wall time goes: Numba's compilation (its "numba:compile" events: compiling,
+    not loading from the cache) counted apart from the phase it happens in."""
+
+    def __init__(self, begin: float | None = None):
+        from numba.core import event
+        self.begin = time.perf_counter() if begin is None else begin
+        self.loop_begin = None
+        self.compile_before_loop = 0.0
+        self.helper = None  # the jit_warm process of a cold start
+        self._event, self._timer = event, event.TimingListener()
+        event.register("numba:compile", self._timer)
+
+    @property
+    def compile_seconds(self) -> float:
+        return self._timer.duration if self._timer.done else 0.0
+
+    def start_loop(self) -> None:
+        self.loop_begin = time.perf_counter()
+        self.compile_before_loop = self.compile_seconds
+
+    def close(self) -> None:
+        self._event.unregister("numba:compile", self._timer)
+
+    def after_first_step(self, on_step):
+        """`on_step`, stopping the compile helper (jit_warm) once the first step has run: every
+        kernel of the step is compiled or loaded by then, and the stepping gets both cores."""
+        def wrapped(s):
+            if self.helper is not None:
+                from . import jit_warm
+                jit_warm.stop(self.helper)
+                self.helper = None
+            on_step(s)
+        return wrapped
+
+    def split(self, loop_seconds: float, render_wait: float) -> dict:
+        """total = setup + compile + stepping + waiting for renders (seconds)."""
+        total = time.perf_counter() - self.begin
+        before = (self.loop_begin or self.begin) - self.begin
+        compile_loop = self.compile_seconds - self.compile_before_loop
+        return {"total": total, "setup": max(before - self.compile_before_loop, 0.0),
+                "compile": self.compile_seconds,
+                "stepping": max(loop_seconds - compile_loop - render_wait, 0.0), "renders": render_wait}
+
+
 def run(scene: Scene, opts: RunOptions) -> int:
     """Run `scene` into `opts.out_dir`; returns the exit code (errors before the run raise)."""
+    clock = RunClock(opts.started)
+    try:
+        return _checked_run(scene, opts, clock)
+    finally:
+        clock.close()
+
+
+def _checked_run(scene: Scene, opts: RunOptions, clock: RunClock) -> int:
     out = opts.out_dir
     check_output_folder(out, opts.overwrite, opts.resume)
     resume = _load_resume(out, scene) if opts.resume else None
     if resume is None:
-        check_size(scene, opts.max_particles)  # first: it also runs the mesh checks (open, zero volume)
+        n_fluid = check_size(scene, opts.max_particles)  # first: it also runs the mesh checks (open, zero volume)
         check_geometry(scene)
+        from . import estimate
+        threads = opts.threads or int(os.environ.get("NUMBA_NUM_THREADS", 0)) or len(os.sched_getaffinity(0))
+        estimate.announce(scene, n_fluid, threads, yes=opts.yes,
+                          interactive=sys.stdin.isatty() and sys.stderr.isatty(),
+                          log=lambda line: print(line, file=sys.stderr))
     renderer = None
-    if opts.render and scene.render.enabled:  # start it now: it imports VTK while we sample
+    if opts.render and scene.render.enabled:
         check_render_size(scene)
+    prepare_output_folder(out, opts.overwrite, opts.resume)  # every check passed: now create/clear
+    if opts.render and scene.render.enabled:  # start it now: it imports VTK while we sample
         from .render_worker import BackgroundRenderer
         renderer = BackgroundRenderer()
     surfacer = None
@@ -415,16 +555,20 @@ def run(scene: Scene, opts: RunOptions) -> int:
     if wants if opts.surface is None else opts.surface:  # start it now: it imports splashsurf while we sample
         from .surface_worker import BackgroundSurfacer
         surfacer = BackgroundSurfacer()
+    from . import jit_warm
+    clock.helper = jit_warm.start(scene.method.value)  # cold Numba cache: compile on the other core too
     try:
-        return _run(scene, opts, resume, renderer, surfacer)
+        return _run(scene, opts, resume, renderer, clock, surfacer)
     except BaseException:
         for worker in (renderer, surfacer):
             if worker is not None:
                 worker.terminate()
         raise
+    finally:
+        jit_warm.stop(clock.helper)
 
 
-def _run(scene: Scene, opts: RunOptions, resume, renderer, surfacer=None) -> int:
+def _run(scene: Scene, opts: RunOptions, resume, renderer, clock: RunClock, surfacer=None) -> int:
     from .scene import scene_to_dict
     out = opts.out_dir
     import numba
@@ -464,17 +608,18 @@ def _run(scene: Scene, opts: RunOptions, resume, renderer, surfacer=None) -> int
         now = info["started"]
         info.update(_previous_info(out))
         info["resumed"] = info.get("resumed", []) + [{"time": resume.time, "step": resume.steps, "at": now}]
-    progress = sys.stderr.isatty() if opts.progress is None else opts.progress
+    progress = (sys.stderr.isatty() or "log") if opts.progress is None else opts.progress
     folder = OutputFolder(out, sim, scene, info, renderer, progress, resume, surfacer)
     info["setup_seconds"] = time.perf_counter() - t_setup
     _write_info(out, info, sim, folder)
     old = {s: signal.signal(s, _on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     _STOP["signal"] = None
     code, status = EXIT_OK, "completed"
+    clock.start_loop()
     t0 = time.perf_counter()
     try:
         try:
-            sim.run(on_frame=folder.frame, on_step=folder.step)
+            sim.run(on_frame=folder.frame, on_step=clock.after_first_step(folder.step))
         except Interrupted:
             code, status = EXIT_INTERRUPTED, "interrupted"
             folder.frame(sim, -1)  # the final frame at the interrupt time
@@ -493,9 +638,11 @@ def _run(scene: Scene, opts: RunOptions, resume, renderer, surfacer=None) -> int
     finally:
         for s, h in old.items():
             signal.signal(s, h)
-        folder.close()
+        folder.close(interrupted=status == "interrupted")
         info.update(status=status, completed=status == "completed", exit_code=code,
                     wall_seconds=time.perf_counter() - t0, finished=time.strftime("%Y-%m-%dT%H:%M:%S%z"))
+        info["time_split_seconds"] = clock.split(info["wall_seconds"], folder.render_seconds)
+        info["compile_seconds"] = info["time_split_seconds"]["compile"]
         try:
             _write_info(out, info, sim, folder)
             paraview.write_view_script(out)
@@ -503,6 +650,11 @@ def _run(scene: Scene, opts: RunOptions, resume, renderer, surfacer=None) -> int
             print(f"ipsph: warning: {exc}", file=sys.stderr)
     if status == "completed" and progress is not None:
         _summary(out, sim, folder, info)
+    rng = (info.get("render") or {}).get("speed_range")
+    if rng and info["render"].get("enabled") and folder.max_speed > 1.05 * rng[1]:
+        print(f"ipsph: note: the fluid reached {folder.max_speed:.2f} m/s, above the renders' colour range "
+              f"{rng[0]:g}-{rng[1]:.2f} m/s (faster particles are white); `ipsph render {out} --speed-range 0 "
+              f"{math.ceil(folder.max_speed * 10) / 10:g}` re-renders with the full range", file=sys.stderr)
     if folder.solver_maxed and status != "failed":
         print(f"ipsph: warning: {folder.solver_maxed} solves stopped at their iteration cap before reaching the "
               f"tolerance (run.json solver_maxed, stats.csv solver_maxed); raise solver.*.max_iterations / "
@@ -545,9 +697,11 @@ def _write_info(out: Path, info: dict, sim: Simulation, folder: OutputFolder) ->
 
 
 def _summary(out: Path, sim: Simulation, folder: OutputFolder, info: dict) -> None:
-    wall = info["wall_seconds"]
-    per_sim = wall / sim.time if sim.time > 0 else math.nan
-    print(f"ipsph: {info['method']} {sim.n_fluid:,} fluid + {sim.n_boundary:,} boundary particles, "
-          f"{sim.steps} steps to t = {sim.time:.3g} s in {wall:.1f} s ({per_sim:.2f} s per simulated second), "
-          f"{folder.frames} frames in {out}/{out_io.RUN_PVD}"
+    sp = info["time_split_seconds"]
+    per_sim = sp["stepping"] / sim.time if sim.time > 0 else math.nan
+    renders = f", waiting for renders {sp['renders']:.1f} s" if folder.renderer is not None or sp["renders"] > 0.05 else ""
+    print(f"ipsph: done: {info['method'].upper()}, {sim.n_fluid:,} fluid + {sim.n_boundary:,} boundary particles, "
+          f"{sim.steps} steps to t = {sim.time:.3g} s, {folder.frames} frames in {out / out_io.RUN_PVD}"
           + (f"; {sim.clamped_steps} steps hit dt_min" if sim.clamped_steps else ""), file=sys.stderr)
+    print(f"ipsph: {sp['total']:.1f} s in all: setup {sp['setup']:.1f} s, compile {sp['compile']:.1f} s, "
+          f"stepping {sp['stepping']:.1f} s ({per_sim:.2f} s per simulated second){renders}", file=sys.stderr)

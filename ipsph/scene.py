@@ -187,8 +187,11 @@ PARAMS: tuple[Param, ...] = (
        "centre.", "render.focal_point", optional=True),
     _P("render.view_up", "vec3", None, "", "Camera up direction. auto: +y.", "render.view_up",
        optional=True),
-    _P("render.speed_range", "range2", None, "m/s", "Colour-map range of the speed. auto: "
-       "from the run.", "render.speed_range", lo=0.0, optional=True),
+    _P("render.speed_range", "range2", None, "m/s", "Colour-map range of the speed, fixed for the "
+       "series. auto: (0, sqrt(v0^2 + 2 g drop)), the speed of a fall from the fluid's top to the "
+       "floor, an estimate made before the run (splashes can exceed it: faster particles are drawn "
+       "white, and the run says how to re-render with its measured maximum).", "render.speed_range",
+       lo=0.0, optional=True),
     _P("render.mode", "choice", "particles", "", "What the renders show: particles (lit spheres) "
        "or surface (the reconstructed surface mesh coloured by speed, same camera and colour bar; "
        "turns output.surface on).", "render.mode", choices=("particles", "surface")),
@@ -578,13 +581,20 @@ def _build_scene(data: dict, base_dir: Path, name: str | None, source: Path | No
     render = RenderConfig(**sub["render"])
     surface = SurfaceConfig(**sub["surface"])
     r = kw.get("particle_radius", Scene.__dataclass_fields__["particle_radius"].default)
-    _check_sections(ctx, time_step, solver, render, r)
 
     fluids_raw = _entity_list(ctx, data, "fluid")
     if not fluids_raw:
         raise ConfigError(f"{where}: no [[fluid]] table: a scene needs at least one fluid body "
                           f"(a box or a mesh)")
     fluids = tuple(_entity(ctx, "fluid", i, e, base_dir, r) for i, e in enumerate(fluids_raw))
+    try:
+        _check_sections(ctx, time_step, solver, render, r)
+    except ConfigError:
+        # A radius far too small also breaks the auto dt_max; its size is the error to report
+        # (the runner checks the count again against --max-particles before sampling).
+        from .runner import check_fluid_count
+        check_fluid_count(fluids, r, None)
+        raise
     boundaries = tuple(_entity(ctx, "boundary", i, e, base_dir, r)
                        for i, e in enumerate(_entity_list(ctx, data, "boundary")))
     for kind, items in (("fluid", fluids), ("boundary", boundaries)):

@@ -10,7 +10,7 @@ import pytest
 from ipsph.io.provenance import read_run_json
 from ipsph.io.stats import read_stats
 
-SHARED = Path(__file__).resolve().parents[2] / "shared" / "anchors" / "splishsplash"
+SHARED = Path(__file__).resolve().parent / "data" / "splishsplash"  # tests/data/splishsplash/PROVENANCE.md
 FIELDS = {"velocity": 3, "density": 1, "pressure": 1, "mass": 1, "id": 1}
 
 
@@ -74,8 +74,6 @@ def test_pressure_is_physical_in_the_last_frame(default_run):
 @pytest.mark.parametrize("scene,count", [("DamBreakModel.json", 6859), ("DoubleDamBreak.json", 4732)])
 def test_stock_splishsplash_scenes_run_unchanged(tmp_path, scene, count):
     path = SHARED / "Scenes" / scene
-    if not path.exists():
-        pytest.skip(f"SPlisHSPlasH anchors not found at {path}")
     res = ipsph("run", path, "-o", tmp_path / "out", "--end-time", 0.05, "--no-render")
     assert res.returncode == 0, res.stderr
     assert "warning" in res.stderr  # unsupported keys are listed, never silently ignored

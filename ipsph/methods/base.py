@@ -21,7 +21,7 @@ class StepReport:
     """The figures of one step (method.md section 5). Errors are fractions, not percent."""
     dt: float = 0.0
     density_error_mean: float = 0.0   # mean_i max(rho_i/rho0 - 1, 0) at the end-of-step positions
-    density_error_max: float = 0.0    # max_i (rho_i/rho0 - 1)
+    density_error_max: float = 0.0    # max_i max(rho_i/rho0 - 1, 0)
     divergence_error: float = 0.0     # dt * mean_i max(D rho_i/Dt, 0) / rho0 after the step's solve
     pd_passes: int = 0
     divergence_iterations: int = 0
@@ -114,8 +114,10 @@ class Method:
         return self._pair_store.nbytes
 
     def density_errors(self) -> tuple[float, float]:
-        """(mean positive, max) density error of the last `density_factor_lambda` evaluation."""
-        return mean(self.err), (float(self.rho.max()) / self.rho0 - 1.0) if len(self.rho) else 0.0
+        """(mean, max) compression of the last `density_factor_lambda` evaluation: both over
+        max(rho_i / rho0 - 1, 0), so neither goes negative when no particle is compressed
+        (a free-falling or spreading fluid at the start)."""
+        return mean(self.err), max(float(self.rho.max()) / self.rho0 - 1.0, 0.0) if len(self.rho) else 0.0
 
     # -- interface ----------------------------------------------------------------------------
     def prepare(self) -> None:
