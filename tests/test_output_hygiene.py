@@ -76,7 +76,8 @@ def test_overwrite_removes_everything_the_earlier_run_wrote(tmp_path, capsys):
     assert code == 0, err
     left = sorted(str(p.relative_to(out)) for p in out.rglob("*") if p.is_file())
     assert left == sorted(["boundary.vtu", "boundary_surface.vtp", "frames/fluid_000000.vtu",
-                           "frames/fluid_000001.vtu", RUN_JSON, RUN_PVD, "stats.csv"])
+                           "frames/fluid_000001.vtu", RUN_JSON, RUN_PVD, "fluid.pvd", "paraview_view.py",
+                           "stats.csv"])
 
 
 # -- --resume renders what has no render ------------------------------------------------------------
