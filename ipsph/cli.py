@@ -1,4 +1,4 @@
-"""Command line: `ipsph run | render | surface | plot | sweep | bench` (also `python -m ipsph`).
+"""Command line: `ipsph run | render | surface | plot | paraview | sweep | bench` (also `python -m ipsph`).
 
 User errors print one line on stderr and exit 2; numerical failures exit 3; interrupts 130.
 """
@@ -50,6 +50,8 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--max-particles", type=int, metavar="N",
                    help="refuse scenes estimated above N fluid particles (default: from available memory)")
     r.add_argument("--quiet", action="store_true", help="no progress line")
+    r.add_argument("--yes", action="store_true",
+                   help="run a scene estimated to take over an hour even when not on a terminal")
 
     rd = sub.add_parser("render", help="render PNGs (and a video) of a finished or running output folder")
     rd.add_argument("out", type=Path, help="output folder of `ipsph run`")
@@ -82,6 +84,10 @@ def _parser() -> argparse.ArgumentParser:
     sw = sub.add_parser("sweep", help="run a sweep of scene variations on a Dask cluster (docs/sweeps.md)")
     from .ensemble.cli import add_arguments as sweep_arguments
     sweep_arguments(sw)
+    pv = sub.add_parser("paraview", help="write OUT/paraview_view.py: opens the run in ParaView as it was rendered",
+                        description="Write OUT/paraview_view.py, a ParaView Python script that opens the run "
+                                    "with its settings and a ready SPH line interpolator (ipsph run writes it too).")
+    pv.add_argument("out", type=Path, help="output folder of `ipsph run`")
 
     b = sub.add_parser("bench", help="benchmark the methods (and SPlisHSPlasH, when installed)")
     from .benchmark.cli import add_arguments
@@ -106,9 +112,15 @@ def _run(args) -> int:
         overrides.append("output.surface=true")
     scene = load_scene(args.scene if args.scene is not None else default_scene_path(), overrides)
     out = args.output if args.output is not None else scene.output.folder
+    try:  # the summary's total counts from the process start: interpreter, imports, scene loading
+        import psutil
+        import time
+        started = time.perf_counter() - max(time.time() - psutil.Process().create_time(), 0.0)
+    except Exception:  # pragma: no cover - psutil is a dependency
+        started = None
     opts = runner.RunOptions(out_dir=out, render=not args.no_render, overwrite=args.overwrite,
                              resume=args.resume, threads=args.threads, max_particles=args.max_particles,
-                             progress=False if args.quiet else None)
+                             progress=False if args.quiet else None, yes=args.yes, started=started)
     return runner.run(scene, opts)
 
 
@@ -156,12 +168,21 @@ def _sweep(args) -> int:
     return sweep_main(args)
 
 
+def _paraview(args) -> int:
+    from .paraview import write_view_script
+    path = write_view_script(args.out)
+    print(f"ipsph: wrote {path}; open it with `pvpython {path}` (headless: `xvfb-run -a pvpython {path} "
+          f"--screenshot view.png`) or ParaView's View > Python Shell > Run Script", file=sys.stderr)
+    return 0
+
+
 def _bench(args) -> int:
     from .benchmark.cli import main as bench_main
     return bench_main(args)
 
 
-_COMMANDS = {"run": _run, "render": _render, "surface": _surface, "plot": _plot, "sweep": _sweep, "bench": _bench}
+_COMMANDS = {"run": _run, "render": _render, "surface": _surface, "plot": _plot, "sweep": _sweep, "paraview": _paraview,
+             "bench": _bench}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -215,8 +215,10 @@ PARAMS: tuple[Param, ...] = (
        "centre.", optional=True),
     _P("render.view_up", "vec3", None, "", "Camera up direction. auto: +y.",
        optional=True),
-    _P("render.speed_range", "range2", None, "m/s", "Colour-map range of the speed. auto: "
-       "from the run.", lo=0.0, optional=True),
+    _P("render.speed_range", "range2", None, "m/s", "Colour-map range of the speed, fixed for the "
+       "series. auto: (0, sqrt(v0^2 + 2 g drop)), the speed of a fall from the fluid's top to the "
+       "floor, an estimate made before the run (splashes can exceed it: faster particles are drawn "
+       "white, and the run says how to re-render with its measured maximum).", lo=0.0, optional=True),
     _P("render.mode", "choice", "particles", "", "What the renders show: particles (lit spheres) "
        "or surface (the reconstructed surface mesh coloured by speed, same camera and colour bar; "
        "turns output.surface on).", choices=RENDER_MODES),

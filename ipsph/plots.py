@@ -85,7 +85,8 @@ def plot_runs(out_dirs, output_dir: Path | None = None, *, dpi: int = 110) -> li
     plt.close(fig)
     written.append(p)
 
-    phases = [ph for ph in PHASES if any(np.any(np.isfinite(_column(s, ph))) for _, s in runs)]
+    # only the phases some run's method has (older stats.csv files hold 0 ms for the others)
+    phases = [ph for ph in PHASES if any(np.any(np.nan_to_num(_column(s, ph)) > 0) for _, s in runs)]
     fig, ax = plt.subplots(figsize=(9, 4.5), constrained_layout=True)
     width = 0.8 / len(runs)
     x = np.arange(len(phases))

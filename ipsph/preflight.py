@@ -47,16 +47,21 @@ def check_render_size(scene: Scene) -> None:
 
 def check_size(scene: Scene, max_particles: int | None) -> int:
     """Estimate the fluid count before sampling and refuse what would not fit (exit 2)."""
+    return check_fluid_count(scene.fluids, scene.particle_radius, max_particles)
+
+
+def check_fluid_count(fluids, radius: float, max_particles: int | None) -> int:
+    """The estimated fluid count of `fluids` at `radius`; ConfigError above the limit (default: memory)."""
     limit = max_particles or default_max_particles()
     total = 0
-    for spec in scene.fluids:
-        n = sampling.estimate_fluid_count(spec, scene.particle_radius)
+    for spec in fluids:
+        n = sampling.estimate_fluid_count(spec, radius)
         total += n
         if total > limit:
             ext = _extent_hint(spec)
             raise ConfigError(
                 f"fluid '{spec.name}' would need about {total:,} particles ({total * BYTES_PER_PARTICLE / 2**30:.1f} GiB) "
-                f"at particle_radius {scene.particle_radius} m, over the limit of {limit:,} (--max-particles){ext}")
+                f"at particle_radius {radius} m, over the limit of {limit:,} (--max-particles){ext}")
     return total
 
 

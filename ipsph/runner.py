@@ -11,6 +11,7 @@ restores the checkpoint, drops frames and stats rows after it, and continues.
 from __future__ import annotations
 
 import math
+import os
 import signal
 import sys
 import time
@@ -21,9 +22,10 @@ import numpy as np
 
 from . import checkpoint as ckpt
 from . import io as out_io
+from . import paraview
 from .errors import EXIT_INTERRUPTED, EXIT_OK, IpsphError, NumericalFailure, OutputError
 from .io import provenance
-from .io.folder import RunFolder, check_output_folder
+from .io.folder import RunFolder, check_output_folder, prepare_output_folder
 from .model import Scene
 from .preflight import check_geometry, check_render_size, check_size
 from .simulation import Simulation, sample_scene
@@ -34,6 +36,7 @@ class Interrupted(Exception):
 
 
 @dataclass
+@dataclass
 class RunOptions:
     out_dir: Path
     render: bool = True
@@ -41,7 +44,9 @@ class RunOptions:
     resume: bool = False
     threads: int | None = None
     max_particles: int | None = None
-    progress: bool | None = None   # None: only on a TTY
+    progress: bool | None = None   # None: live on a TTY, else one line every PROGRESS_EVERY_S
+    yes: bool = False              # run even when the estimate says hours and no one is at a terminal
+    started: float | None = None   # time.perf_counter() when the process started (the CLI: its imports count)
     surface: bool | None = None    # None: the scene's output.surface (or render.mode = "surface")
 
 
@@ -64,17 +69,77 @@ class StopOnSignal:
         return False
 
 
+class RunClock:
+    """Where a run's wall time goes: Numba's compilation (its "numba:compile" events: compiling,
+    not loading from the cache) counted apart from the phase it happens in."""
+
+    def __init__(self, begin: float | None = None):
+        from numba.core import event
+        self.begin = time.perf_counter() if begin is None else begin
+        self.loop_begin = None
+        self.compile_before_loop = 0.0
+        self.helper = None  # the jit_warm process of a cold start
+        self._event, self._timer = event, event.TimingListener()
+        event.register("numba:compile", self._timer)
+
+    @property
+    def compile_seconds(self) -> float:
+        return self._timer.duration if self._timer.done else 0.0
+
+    def start_loop(self) -> None:
+        self.loop_begin = time.perf_counter()
+        self.compile_before_loop = self.compile_seconds
+
+    def close(self) -> None:
+        self._event.unregister("numba:compile", self._timer)
+
+    def after_first_step(self, on_step):
+        """`on_step`, stopping the compile helper (jit_warm) once the first step has run: every
+        kernel of the step is compiled or loaded by then, and the stepping gets both cores."""
+        def wrapped(s):
+            if self.helper is not None:
+                from . import jit_warm
+                jit_warm.stop(self.helper)
+                self.helper = None
+            on_step(s)
+        return wrapped
+
+    def split(self, loop_seconds: float, render_wait: float) -> dict:
+        """total = setup + compile + stepping + waiting for renders (seconds)."""
+        total = time.perf_counter() - self.begin
+        before = (self.loop_begin or self.begin) - self.begin
+        compile_loop = self.compile_seconds - self.compile_before_loop
+        return {"total": total, "setup": max(before - self.compile_before_loop, 0.0),
+                "compile": self.compile_seconds,
+                "stepping": max(loop_seconds - compile_loop - render_wait, 0.0), "renders": render_wait}
+
+
 def run(scene: Scene, opts: RunOptions) -> int:
     """Run `scene` into `opts.out_dir`; returns the exit code (errors before the run raise)."""
+    clock = RunClock(opts.started)
+    try:
+        return _checked_run(scene, opts, clock)
+    finally:
+        clock.close()
+
+
+def _checked_run(scene: Scene, opts: RunOptions, clock: RunClock) -> int:
     out = opts.out_dir
     check_output_folder(out, opts.overwrite, opts.resume)
     resume = _load_resume(out, scene) if opts.resume else None
     if resume is None:
-        check_size(scene, opts.max_particles)  # first: it also runs the mesh checks (open, zero volume)
+        n_fluid = check_size(scene, opts.max_particles)  # first: it also runs the mesh checks (open, zero volume)
         check_geometry(scene)
+        from . import estimate
+        threads = opts.threads or int(os.environ.get("NUMBA_NUM_THREADS", 0)) or len(os.sched_getaffinity(0))
+        estimate.announce(scene, n_fluid, threads, yes=opts.yes,
+                          interactive=sys.stdin.isatty() and sys.stderr.isatty(),
+                          log=lambda line: print(line, file=sys.stderr))
     renderer = None
-    if opts.render and scene.render.enabled:  # start it now: it imports VTK while we sample
+    if opts.render and scene.render.enabled:
         check_render_size(scene)
+    prepare_output_folder(out, opts.overwrite, opts.resume)  # every check passed: now create/clear
+    if opts.render and scene.render.enabled:  # start it now: it imports VTK while we sample
         from .render.worker import BackgroundRenderer
         renderer = BackgroundRenderer()
     surfacer = None
@@ -82,16 +147,20 @@ def run(scene: Scene, opts: RunOptions) -> int:
     if wants if opts.surface is None else opts.surface:  # start it now: it imports splashsurf while we sample
         from .surface_worker import BackgroundSurfacer
         surfacer = BackgroundSurfacer()
+    from . import jit_warm
+    clock.helper = jit_warm.start(scene.method.value)  # cold Numba cache: compile on the other core too
     try:
-        return _run(scene, opts, resume, renderer, surfacer)
+        return _run(scene, opts, resume, renderer, clock, surfacer)
     except BaseException:
         for worker in (renderer, surfacer):
             if worker is not None:
                 worker.terminate()
         raise
+    finally:
+        jit_warm.stop(clock.helper)
 
 
-def _run(scene: Scene, opts: RunOptions, resume, renderer, surfacer=None) -> int:
+def _run(scene: Scene, opts: RunOptions, resume, renderer, clock: RunClock, surfacer=None) -> int:
     from .scene import scene_to_dict
     out = opts.out_dir
     import numba
@@ -131,20 +200,23 @@ def _run(scene: Scene, opts: RunOptions, resume, renderer, surfacer=None) -> int
         now = info["started"]
         info.update(_previous_info(out))
         info["resumed"] = info.get("resumed", []) + [{"time": resume.time, "step": resume.steps, "at": now}]
-    progress = sys.stderr.isatty() if opts.progress is None else opts.progress
+    progress = (sys.stderr.isatty() or "log") if opts.progress is None else opts.progress
     folder = RunFolder(out, sim, scene, info, renderer, progress, resume, surfacer)
     info["setup_seconds"] = time.perf_counter() - t_setup
     _write_info(out, info, sim, folder)
     code, status = EXIT_OK, "completed"
+    clock.start_loop()
     t0 = time.perf_counter()
     try:
         with StopOnSignal() as stop:  # handlers restored before folder.close(): Ctrl-C there skips renders
+            folder.stopping = lambda: stop.signal is not None
+
             def on_step(s):
                 folder.step(s)
                 if stop.signal:
                     raise Interrupted()
             try:
-                sim.run(on_frame=folder.frame, on_step=on_step)
+                sim.run(on_frame=folder.frame, on_step=clock.after_first_step(on_step))
             except Interrupted:
                 code, status = EXIT_INTERRUPTED, "interrupted"
                 folder.frame(sim, -1)  # the final frame at the interrupt time
@@ -161,15 +233,23 @@ def _run(scene: Scene, opts: RunOptions, resume, renderer, surfacer=None) -> int
         print(f"\nipsph: error: {exc}; the {folder.frames} frames listed in {out / out_io.RUN_PVD} are intact",
               file=sys.stderr)
     finally:
-        folder.close()
+        folder.close(interrupted=status == "interrupted")
         info.update(status=status, completed=status == "completed", exit_code=code,
                     wall_seconds=time.perf_counter() - t0, finished=time.strftime("%Y-%m-%dT%H:%M:%S%z"))
+        info["time_split_seconds"] = clock.split(info["wall_seconds"], folder.render_seconds)
+        info["compile_seconds"] = info["time_split_seconds"]["compile"]
         try:
             _write_info(out, info, sim, folder)
+            paraview.write_view_script(out)
         except IpsphError as exc:  # e.g. the disk is still full: say so, keep the run's exit code
             print(f"ipsph: warning: {exc}", file=sys.stderr)
     if status == "completed" and progress is not None:
         _summary(out, sim, folder, info)
+    rng = (info.get("render") or {}).get("speed_range")
+    if rng and info["render"].get("enabled") and folder.max_speed > 1.05 * rng[1]:
+        print(f"ipsph: note: the fluid reached {folder.max_speed:.2f} m/s, above the renders' colour range "
+              f"{rng[0]:g}-{rng[1]:.2f} m/s (faster particles are white); `ipsph render {out} --speed-range 0 "
+              f"{math.ceil(folder.max_speed * 10) / 10:g}` re-renders with the full range", file=sys.stderr)
     if folder.solver_maxed and status != "failed":
         print(f"ipsph: warning: {folder.solver_maxed} solves stopped at their iteration cap before reaching the "
               f"tolerance (run.json solver_maxed, stats.csv solver_maxed); raise solver.*.max_iterations / "
@@ -212,9 +292,11 @@ def _write_info(out: Path, info: dict, sim: Simulation, folder: RunFolder) -> No
 
 
 def _summary(out: Path, sim: Simulation, folder: RunFolder, info: dict) -> None:
-    wall = info["wall_seconds"]
-    per_sim = wall / sim.time if sim.time > 0 else math.nan
-    print(f"ipsph: {info['method']} {sim.n_fluid:,} fluid + {sim.n_boundary:,} boundary particles, "
-          f"{sim.steps} steps to t = {sim.time:.3g} s in {wall:.1f} s ({per_sim:.2f} s per simulated second), "
-          f"{folder.frames} frames in {out}/{out_io.RUN_PVD}"
+    sp = info["time_split_seconds"]
+    per_sim = sp["stepping"] / sim.time if sim.time > 0 else math.nan
+    renders = f", waiting for renders {sp['renders']:.1f} s" if folder.renderer is not None or sp["renders"] > 0.05 else ""
+    print(f"ipsph: done: {info['method'].upper()}, {sim.n_fluid:,} fluid + {sim.n_boundary:,} boundary particles, "
+          f"{sim.steps} steps to t = {sim.time:.3g} s, {folder.frames} frames in {out / out_io.RUN_PVD}"
           + (f"; {sim.clamped_steps} steps hit dt_min" if sim.clamped_steps else ""), file=sys.stderr)
+    print(f"ipsph: {sp['total']:.1f} s in all: setup {sp['setup']:.1f} s, compile {sp['compile']:.1f} s, "
+          f"stepping {sp['stepping']:.1f} s ({per_sim:.2f} s per simulated second){renders}", file=sys.stderr)

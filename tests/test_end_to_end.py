@@ -10,7 +10,7 @@ import pytest
 from ipsph.io.provenance import read_run_json
 from ipsph.io.stats import read_stats
 
-SHARED = Path(__file__).resolve().parents[2] / "shared" / "anchors" / "splishsplash"
+SHARED = Path(__file__).resolve().parent / "data" / "splishsplash"  # tests/data/splishsplash/PROVENANCE.md
 FIELDS = {"velocity": 3, "density": 1, "pressure": 1, "mass": 1, "id": 1}
 
 
@@ -36,7 +36,8 @@ def test_default_scene_writes_a_readable_series(default_run):
     assert np.allclose(np.diff(times), 0.04, atol=1e-9)  # frames land exactly on output times
     reader.set_active_time_value(times[-1])
     mb = reader.read()
-    assert mb.n_blocks == 2  # part 0 fluid, part 1 boundary
+    assert mb.n_blocks == 3  # fluid, boundary particles, wall surface (run.pvd's parts, named in ParaView)
+    assert mb[2].n_cells > 0 and mb[2].bounds == pytest.approx(mb[1].bounds, abs=0.05)  # walls sampled on it
     run = read_run_json(out / "run.json")
     assert run["completed"] and run["status"] == "completed"
     # the wall fit (method.md section 1): the rest lattice read up to +14 % with Akinci's volumes
@@ -73,8 +74,6 @@ def test_pressure_is_physical_in_the_last_frame(default_run):
 @pytest.mark.parametrize("scene,count", [("DamBreakModel.json", 6859), ("DoubleDamBreak.json", 4732)])
 def test_stock_splishsplash_scenes_run_unchanged(tmp_path, scene, count):
     path = SHARED / "Scenes" / scene
-    if not path.exists():
-        pytest.skip(f"SPlisHSPlasH anchors not found at {path}")
     res = ipsph("run", path, "-o", tmp_path / "out", "--end-time", 0.05, "--no-render")
     assert res.returncode == 0, res.stderr
     assert "warning" in res.stderr  # unsupported keys are listed, never silently ignored

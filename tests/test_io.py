@@ -151,6 +151,28 @@ def test_pvd_without_boundary(tmp_path):
     assert PvdSeries.load(tmp_path / "run.pvd").boundary_file is None
 
 
+def test_pvd_parts_are_named_and_declared_once(tmp_path):
+    """Blocks carry their part's name (ParaView: /Root/fluid, ...); a part declared in io.PARTS
+    with a file per frame gets its own series; undeclared parts are refused."""
+    s = PvdSeries(tmp_path / "run.pvd", "boundary.vtu", static={"boundary_surface": "boundary_surface.vtp"})
+    for i, t in enumerate((0.0, 0.04)):
+        s.add(t, frame_file(i), surface=f"surfaces/surface_{i:06d}.vtp")
+    text = (tmp_path / "run.pvd").read_text()
+    assert ('<DataSet timestep="0.04" group="" part="1" name="surface" file="surfaces/surface_000001.vtp"/>'
+            in text)
+    assert text.count('name="boundary_surface"') == 2 and text.count('part="0" name="fluid"') == 2
+    assert (tmp_path / "surface.pvd").read_text().count('name="surface"') == 2
+    assert "boundary" not in (tmp_path / "fluid.pvd").read_text()
+    back = PvdSeries.load(tmp_path / "run.pvd")
+    assert back.static == {"boundary": "boundary.vtu", "boundary_surface": "boundary_surface.vtp"}
+    assert back.frame_parts[1] == {"surface": "surfaces/surface_000001.vtp"}
+    assert back.to_xml() == text
+    with pytest.raises(ValueError, match="not a part"):
+        s.add(0.08, frame_file(2), spray="x.vtu")
+    with pytest.raises(ValueError, match="written once"):
+        s.add(0.08, frame_file(2), boundary="x.vtu")
+
+
 def test_pvd_rewrite_is_atomic(tmp_path, monkeypatch):
     s = PvdSeries(tmp_path / "run.pvd", "boundary.vtu")
     s.add(0.0, "frames/fluid_000000.vtu")
@@ -168,7 +190,8 @@ def test_pvd_rewrite_is_atomic(tmp_path, monkeypatch):
     monkeypatch.setattr(os, "replace", real_replace)
     assert (tmp_path / "run.pvd").read_text() == good  # old series still valid
     assert PvdSeries.load(tmp_path / "run.pvd").times == [0.0]
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.pvd"]  # no temp left
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fluid.pvd", "run.pvd"]  # no temp left
+    assert (tmp_path / "fluid.pvd").read_text().count("<DataSet") == 1
 
 
 def test_atomic_path_passes_keyboard_interrupt_and_cleans_up(tmp_path):

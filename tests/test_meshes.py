@@ -14,9 +14,7 @@ from ipsph.errors import MeshError
 pv = pytest.importorskip("pyvista")
 from pyvista import examples  # noqa: E402
 
-MODELS = Path(__file__).resolve().parents[2] / "shared" / "anchors" / "splishsplash" / "models"
-needs_models = pytest.mark.skipif(not (MODELS / "Dragon_50k.obj").is_file(),
-                                  reason=f"SPlisHSPlasH anchor meshes not found at {MODELS}")
+MODELS = Path(__file__).resolve().parents[1] / "meshes"  # shipped with the repository (meshes/PROVENANCE.md)
 
 # Exact geometry (boxes built from 8 corners): float64 round-off only.
 EXACT = 1e-12
@@ -55,7 +53,6 @@ def test_load_vtp(tmp_path):
     assert mesh.is_all_triangles and mesh.n_cells == 840
 
 
-@needs_models
 def test_load_obj_with_uvs_unitbox():
     mesh = meshes.load_mesh(MODELS / "UnitBox.obj")
     assert mesh.n_points == 8 and mesh.n_cells == 12
@@ -141,7 +138,6 @@ def test_open_mesh_refused_unless_allowed():
     assert not report.closed and report.open_edges == 224
 
 
-@needs_models
 def test_dragon_loads_and_is_closed():
     mesh, report = meshes.prepare_mesh(MODELS / "Dragon_50k.obj")
     assert report.n_triangles == 50_000 and report.closed and not report.flipped

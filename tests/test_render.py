@@ -90,11 +90,10 @@ def test_render_lut_is_the_plot_colormap():
     np.testing.assert_allclose(lut, speed_colormap()(np.linspace(0.0, 1.0, 256))[:, :3], atol=1.0 / 255)
 
 
-@pytest.mark.parametrize("view", list(VIEWS))
-def test_camera_frames_every_corner(view):
-    bounds = (-1.0, 3.0, 0.0, 1.0, -0.5, 0.5)
-    w, h = 1280, 720
-    pos, focal, up = camera_for_view(bounds, view, width=w, height=h)
+def _assert_framed(bounds, pos, focal, up, w=1280, h=720):
+    """Every corner of `bounds` projects inside the frame region: in the image, off the colour bar
+    (right of FRAME_RIGHT) and off the time label and title (beyond FRAME_V)."""
+    from ipsph.render import FRAME_LEFT, FRAME_RIGHT, FRAME_V
     pos, focal, up = map(np.asarray, (pos, focal, up))
     fwd = (focal - pos) / np.linalg.norm(focal - pos)
     right = np.cross(fwd, up)
@@ -104,16 +103,36 @@ def test_camera_frames_every_corner(view):
         rel = c - pos
         depth = rel @ fwd
         assert depth > 0
-        assert abs(rel @ up) / depth <= tan_v + 1e-9          # inside vertically
-        assert abs(rel @ right) / depth <= tan_v * w / h + 1e-9  # inside horizontally
-    np.testing.assert_allclose(focal, b.mean(axis=1))
+        assert abs(rel @ up) / depth <= FRAME_V * tan_v + 1e-9                  # inside vertically
+        u = (rel @ right) / depth / (tan_v * w / h)                             # -1 .. 1 across
+        assert FRAME_LEFT - 1e-9 <= u <= FRAME_RIGHT + 1e-9                     # not under the bar
+
+
+@pytest.mark.parametrize("view", list(VIEWS))
+def test_camera_frames_every_corner(view):
+    bounds = (-1.0, 3.0, 0.0, 1.0, -0.5, 0.5)
+    _assert_framed(bounds, *camera_for_view(bounds, view, width=1280, height=720))
+
+
+def test_an_imported_camera_frames_the_whole_domain():
+    """SPlisHSPlasH's DoubleDamBreak camera (at (0, 2, 5) looking at the origin) is too close for
+    the tank: the view keeps its direction and steps back until nothing is cropped or under the bar."""
+    bounds = (-1.55, 1.55, -0.05, 3.05, -1.55, 1.55)  # that scene's domain at t = 0
+    pos, focal, up = camera_for_view(bounds, camera_position=(0, 2, 5), focal_point=(0, 0, 0))
+    _assert_framed(bounds, pos, focal, up)
+    d = np.subtract(pos, focal)
+    np.testing.assert_allclose(d / np.linalg.norm(d), np.array([0, 2, 5]) / math.sqrt(29), atol=1e-12)
+    assert np.linalg.norm(d) > math.sqrt(29)
 
 
 def test_camera_explicit_and_bad_view():
-    pos, focal, up = camera_for_view((0, 1, 0, 1, 0, 1), camera_position=(5, 5, 5), focal_point=(0, 0, 0))
-    assert pos == (5, 5, 5) and focal == (0, 0, 0) and up == (0, 1, 0)
+    # far enough to see the unit box: the user's camera is kept as given
+    pos, focal, up = camera_for_view((0, 1, 0, 1, 0, 1), camera_position=(5, 5, 5), focal_point=(0.5, 0.5, 0.5))
+    np.testing.assert_allclose(pos, (5, 5, 5), atol=1e-12)
+    np.testing.assert_allclose(focal, (0.5, 0.5, 0.5), atol=1e-12)
+    assert up == pytest.approx((0, 1, 0), abs=0.5)  # y stays up (orthogonalised against the view)
     _, _, up = camera_for_view((0, 1, 0, 1, 0, 1), camera_position=(0, 5, 0), focal_point=(0, 0, 0))
-    assert up == (0, 0, -1)  # looking straight down: y cannot be up
+    np.testing.assert_allclose(np.abs(up), (0, 0, 1), atol=1e-12)  # looking straight down: y cannot be up
     with pytest.raises(ConfigError, match="front"):
         camera_for_view((0, 1, 0, 1, 0, 1), "diagonal")
 

@@ -15,9 +15,7 @@ from ipsph.errors import ConfigError, MeshError
 pv = pytest.importorskip("pyvista")
 from pyvista import examples  # noqa: E402
 
-MODELS = Path(__file__).resolve().parents[2] / "shared" / "anchors" / "splishsplash" / "models"
-needs_models = pytest.mark.skipif(not (MODELS / "Dragon_50k.obj").is_file(),
-                                  reason=f"SPlisHSPlasH anchor meshes not found at {MODELS}")
+MODELS = Path(__file__).resolve().parents[1] / "meshes"  # shipped with the repository (meshes/PROVENANCE.md)
 R = 0.025
 
 
@@ -163,7 +161,6 @@ def box_coverage(points, lo, hi, r):
     return sampling.nearest_distance(q, points, 4 * r).max() / r
 
 
-@needs_models
 def test_dambreak_container_unitbox_is_a_box_grid():
     spec = model.BoundarySpec("tank", "mesh", mesh=MODELS / "UnitBox.obj",
                               transform=model.Transform(translate=(0.0, 1.5, 0.0), scale=(4.0, 3.0, 1.5)))
@@ -229,7 +226,6 @@ def test_mesh_boundary_keeps_sharp_corners(tmp_path):
     assert spacing_stats(y, R)[0] >= 1.0 - 1e-9
 
 
-@needs_models
 def test_dragon_boundary_is_deterministic_closed_and_covered():
     spec = model.BoundarySpec("dragon", "mesh", mesh=MODELS / "Dragon_50k.obj", role=model.Role.OBSTACLE,
                               transform=model.Transform(translate=(1.5, 0.0, -0.75)))

@@ -13,11 +13,8 @@ from ipsph.errors import ConfigError
 from ipsph.model import Method, Role, Transform
 from ipsph.scene import load_scene, scene_from_dict, scene_to_dict
 
-ANCHORS = Path(__file__).resolve().parents[2] / "shared" / "anchors" / "splishsplash"
-needs_anchors = pytest.mark.skipif(
-    not (ANCHORS / "Scenes").is_dir(),
-    reason=f"SPlisHSPlasH stock scenes not found at {ANCHORS} (shared anchors are not part of "
-           f"the repository)")
+# SPlisHSPlasH's stock scenes, copied into the repository (tests/data/splishsplash/PROVENANCE.md)
+ANCHORS = Path(__file__).resolve().parent / "data" / "splishsplash"
 
 # Fluid particle counts SPlisHSPlasH itself creates for the stock scenes (method.md section 6).
 STOCK = {
@@ -41,7 +38,6 @@ def lattice(f, r: float) -> int:
     return math.prod(c_round((hi - lo) / (2 * r)) - 1 for lo, hi in zip(f.box_min, f.box_max))
 
 
-@needs_anchors
 @pytest.mark.parametrize("rel", sorted(STOCK))
 def test_stock_scenes_import(rel):
     method, count = STOCK[rel]
@@ -60,7 +56,6 @@ def test_stock_scenes_import(rel):
     assert scene_from_dict(scene_to_dict(s)) == s
 
 
-@needs_anchors
 def test_current_layout_solver_blocks_are_mapped():
     s = load_scene(ANCHORS / "Scenes/DamBreakModel.json")
     sv = s.solver
@@ -77,7 +72,6 @@ def test_current_layout_solver_blocks_are_mapped():
     assert "viscosityMethod=1 (Standard): simulation.standard_viscosity = 0.01 m^2/s, XSPH off" in w
 
 
-@needs_anchors
 def test_fluid_block_translation_and_scale():
     # DamBreakModelDragons: start [-0.5, 0, -0.5], end [0.5, 1, 0.5], translation [-2.45, 0, 0],
     # scale [1, 2, 1] -> corner' = scale * corner + translation (SPlisHSPlasH SceneLoader)
@@ -92,7 +86,6 @@ def test_fluid_block_translation_and_scale():
     assert dragon2.transform.translate == (1.5, 0.0, 0.75)
 
 
-@needs_anchors
 def test_pf_scene_maps_the_projective_fluids_block_and_velocities():
     s = load_scene(ANCHORS / "Scenes/CompressibleSPH_PF.json")
     assert s.solver.pf.stiffness == 25_000.0
@@ -103,7 +96,6 @@ def test_pf_scene_maps_the_projective_fluids_block_and_velocities():
     assert s.time_step.dt_initial == 0.001  # no timeStepSize: SPlisHSPlasH's default
 
 
-@needs_anchors
 def test_v200_flat_layout():
     s = load_scene(ANCHORS / "Scenes_v2.0.0/DamBreakModel.json")
     assert s.solver.dfsph.density_error_pct == 0.01 and s.solver.divergence.error_pct == 0.1
@@ -118,7 +110,6 @@ def test_v200_flat_layout():
     assert bare.method == Method.DFSPH and "no viscosity given" in bare.warnings[0]
 
 
-@needs_anchors
 def test_overrides_apply_to_imported_scenes():
     s = load_scene(ANCHORS / "Scenes/DamBreakModel.json",
                    ["simulation.method=ipsph", "fluid.0.velocity=[1, 0, 0]",

@@ -1,8 +1,8 @@
 """Which scenes `ipsph bench` runs: the stock SPlisHSPlasH scenes, the Table 1 pipelines, the scaling tank.
 
 * Stock scenes (``DamBreakModel``, ``DoubleDamBreak``, ``DamBreakModelDragons``) are looked up by name
-  in ``--scene-dir``, else in ``shared/anchors/splishsplash/Scenes`` next to the repository or the
-  current directory (the layout of a development checkout). Our ``load_scene`` imports them directly
+  in ``--scene-dir``, else in ``$IPSPH_SPLISHSPLASH_SCENES``, else in the repository's copy
+  ``tests/data/splishsplash/Scenes`` (MIT, with provenance; ``./Scenes`` too when run elsewhere). Our ``load_scene`` imports them directly
   and SPlisHSPlasH runs the same file.
 * The Table 1 pipelines (``pipelines/*.toml``) are paired with the stock scene SPlisHSPlasH runs for
   the same case.
@@ -28,7 +28,7 @@ __all__ = ["DEFAULT_SCENES", "PIPELINES", "resolve_scene", "pipeline_path",
 
 DEFAULT_SCENES = ("DamBreakModel", "DoubleDamBreak")
 _REPO_ROOT = Path(__file__).resolve().parents[2]
-_STOCK_SUBDIR = Path("shared") / "anchors" / "splishsplash" / "Scenes"
+_STOCK_SUBDIR = Path("tests") / "data" / "splishsplash" / "Scenes"  # tests/data/splishsplash/PROVENANCE.md
 # Table 1 case -> (pipeline file stem, the SPlisHSPlasH stock scene for the same case)
 PIPELINES = {"breaking_dam": "DamBreakModel", "double_dam_break": "DoubleDamBreak",
              "two_dragons": "DamBreakModelDragons"}
@@ -41,8 +41,7 @@ def _candidates(scene_dir: str | Path | None) -> list[Path]:
     env = os.environ.get("IPSPH_SPLISHSPLASH_SCENES")
     if env:
         out.append(Path(env).expanduser())
-    for base in (_REPO_ROOT.parent, Path.cwd().parent, Path.cwd(), _REPO_ROOT):
-        out.append(base / _STOCK_SUBDIR)
+    out += [_REPO_ROOT / _STOCK_SUBDIR, Path.cwd() / _STOCK_SUBDIR, Path.cwd() / "Scenes"]
     return list(dict.fromkeys(out))
 
 

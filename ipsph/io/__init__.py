@@ -2,13 +2,15 @@
 
 Layout of an output folder OUT (fixed; the runner fills it, `ipsph render` reads it):
 
-    OUT/run.pvd                   per timestep two DataSets: part 0 the fluid frame, part 1 boundary.vtu
+    OUT/run.pvd                   per timestep one named DataSet per part of PARTS (fluid, boundary, ...)
+    OUT/fluid.pvd                 the fluid frames alone (one series per per-frame part)
     OUT/frames/fluid_000000.vtu   one per frame, binary raw appended (zlib level 1 on request)
     OUT/boundary.vtu              boundary particles, written once (fields `volume`, `id`)
     OUT/boundary_surface.vtp      the transformed boundary meshes, for renders
     OUT/surfaces/surface_000000.vtp   the fluid's surface mesh per frame (output.surface, `ipsph surface`)
     OUT/stats.csv                 one row per step
     OUT/run.json                  provenance
+    OUT/paraview_view.py          a ParaView script that opens the run with its settings (ipsph.paraview)
     OUT/renders/frame_000000.png, OUT/plots/*.png, OUT/video.mp4|gif
 
 Every file that a reader may open while the run goes on is replaced atomically
@@ -19,13 +21,15 @@ from __future__ import annotations
 
 import os
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import WriteError
 
 __all__ = [
     "FRAMES_DIR", "RUN_PVD", "BOUNDARY_VTU", "BOUNDARY_SURFACE", "STATS_CSV", "RUN_JSON",
-    "RENDERS_DIR", "PLOTS_DIR", "SURFACES_DIR", "frame_file", "surface_file", "atomic_path", "check_writable",
+    "RENDERS_DIR", "PLOTS_DIR", "SURFACES_DIR", "PARAVIEW_SCRIPT", "Part", "PARTS", "part", "frame_file",
+    "surface_file", "atomic_path", "check_writable",
 ]
 
 RUN_PVD = "run.pvd"
@@ -37,6 +41,38 @@ RUN_JSON = "run.json"
 RENDERS_DIR = "renders"
 PLOTS_DIR = "plots"
 SURFACES_DIR = "surfaces"
+PARAVIEW_SCRIPT = "paraview_view.py"
+
+
+@dataclass(frozen=True)
+class Part:
+    """One part of run.pvd: a named block of every timestep."""
+    name: str
+    file: str | None = None  # the one file of a part written once; None: a file per frame
+
+    @property
+    def series(self) -> str | None:
+        """File name of the part's own series beside run.pvd (per-frame parts), else None."""
+        return f"{self.name}.pvd" if self.file is None else None
+
+
+# The parts of run.pvd in block order, each declared here once: run.pvd names its blocks after
+# them (ParaView shows /Root/fluid, ...), and each per-frame part also gets its own series
+# OUT/<name>.pvd, which ParaView's SPH filters and Point Gaussian take without ExtractBlock.
+PARTS = (
+    Part("fluid"),
+    Part("surface"),
+    Part("boundary", BOUNDARY_VTU),
+    Part("boundary_surface", BOUNDARY_SURFACE),
+)
+
+
+def part(name: str) -> Part:
+    """The declared part called `name` (ValueError for an undeclared one)."""
+    for p in PARTS:
+        if p.name == name:
+            return p
+    raise ValueError(f"{name!r} is not a part of run.pvd; declared: {', '.join(p.name for p in PARTS)}")
 
 
 def check_writable(out: Path) -> None:

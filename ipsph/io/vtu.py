@@ -49,9 +49,10 @@ def _vtk_array(name: str, values: np.ndarray):
     return arr
 
 
-def _particle_grid(points: np.ndarray, fields: dict[str, np.ndarray], time: float | None):
+def _particle_grid(points: np.ndarray, fields: dict[str, np.ndarray], time: float | None,
+                   field_data: dict[str, float] | None = None):
     from vtkmodules.util.numpy_support import numpy_to_vtk, numpy_to_vtkIdTypeArray
-    from vtkmodules.vtkCommonCore import vtkDoubleArray, vtkPoints
+    from vtkmodules.vtkCommonCore import vtkDoubleArray, vtkFloatArray, vtkPoints
     from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkUnstructuredGrid
 
     pts = np.ascontiguousarray(points)
@@ -73,10 +74,10 @@ def _particle_grid(points: np.ndarray, fields: dict[str, np.ndarray], time: floa
         if len(values) != n:
             raise ValueError(f"field {name!r} has {len(values)} values for {n} points")
         pd.AddArray(_vtk_array(name, values))
-    if time is not None:
-        tv = vtkDoubleArray()
-        tv.SetName("TimeValue")
-        tv.InsertNextValue(float(time))
+    for name, value in {**({"TimeValue": time} if time is not None else {}), **(field_data or {})}.items():
+        tv = vtkFloatArray() if isinstance(value, np.float32) else vtkDoubleArray()  # Float32 / Float64
+        tv.SetName(name)
+        tv.InsertNextValue(float(value))
         grid.GetFieldData().AddArray(tv)
     return grid, (pts, ids)
 
@@ -113,15 +114,19 @@ def _write(writer, data, path: Path, compress: bool, what: str) -> int:
 
 
 def write_particles(path: str | os.PathLike, points: np.ndarray, fields: dict[str, np.ndarray],
-                    time: float | None, *, compress: bool = False) -> int:
+                    time: float | None, *, compress: bool = False,
+                    field_data: dict[str, float] | None = None) -> int:
     """Write one particle frame to `path` (.vtu) atomically; return its size in bytes.
 
+    `time` is stored as the field-data value `TimeValue`; `field_data` adds more one-value
+    field-data arrays, Float32 for a numpy.float32 value, else Float64 (the runner's
+    `particle_radius`, `sph_spatial_step`).
     Vector fields are (N, 3) arrays (3-component VTK arrays), scalars (N,). Booleans are stored
     as UInt8. `compress=True` uses zlib level 1 (about 2x smaller, ~15x slower).
     Raises WriteError (one line, naming the file) on any failure; the final name then holds
     its previous content or nothing.
     """
-    grid, _keepalive = _particle_grid(points, fields, time)
+    grid, _keepalive = _particle_grid(points, fields, time, field_data)
     return _write(_make_writer("vtu"), grid, Path(path), compress, "particle frame")
 
 

@@ -25,7 +25,7 @@ class StepReport:
     """The figures of one step (method.md section 5). Errors are fractions, not percent."""
     dt: float = 0.0
     density_error_mean: float = 0.0   # mean_i max(rho_i/rho0 - 1, 0) at the end-of-step positions
-    density_error_max: float = 0.0    # max_i (rho_i/rho0 - 1)
+    density_error_max: float = 0.0    # max_i max(rho_i/rho0 - 1, 0)
     divergence_error: float = 0.0     # dt * mean_i max(D rho_i/Dt, 0) / rho0 after the step's solve
     pd_passes: int = 0
     divergence_iterations: int = 0
@@ -118,9 +118,10 @@ class Method:
         return rep
 
     def density_errors(self, dens) -> tuple[float, float]:
-        """(mean positive, max) density error of a density pass's result."""
+        """(mean, max) compression of a density pass's result: both over max(rho_i / rho0 - 1, 0), so
+        neither goes negative when no particle is compressed (a free-falling or spreading fluid)."""
         be, n = self.be, self.state.n
-        return be.mean(dens.err), (be.max(dens.rho) / self.fluid.rho0 - 1.0) if n else 0.0
+        return be.mean(dens.err), max(be.max(dens.rho) / self.fluid.rho0 - 1.0, 0.0) if n else 0.0
 
     @property
     def lists(self):

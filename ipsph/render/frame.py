@@ -1,6 +1,6 @@
 """FrameRenderer: one offscreen VTK window reused for a series of frames, two engines
-("splat": static layers once through VTK, particles by ipsph.splat; "vtk": all through VTK, the
-reference the tests hold the splat engine to)."""
+("splat": static layers once through VTK, particles by render.splat; "vtk": all through VTK, the
+reference the tests hold the splat engine to), and the surface mode."""
 from __future__ import annotations
 
 import math
@@ -13,8 +13,7 @@ from ..model import RenderConfig
 from .camera import camera_for_view
 from .gl import _use_egl
 from .png import save_png
-from .style import (BACKGROUND, ENGINES, SPEED_COLOURS, SURFACE_COLOUR, SURFACE_OPACITY, TIME_LABEL_POS, VIEW_ANGLE_DEG,
-                    _rgb, _ui_scale, speed_lut_rgb)
+from .style import (BACKGROUND, EDGE_OPACITY, ENGINES, SPEED_COLOURS, SURFACE_COLOUR, SURFACE_OPACITY, TIME_LABEL_POS, TITLE_COLOUR, VIEW_ANGLE_DEG, _rgb, _ui_scale, speed_lut_rgb)
 from .text import _draw_text, _scalar_bar, _set_font
 
 
@@ -126,12 +125,12 @@ class FrameRenderer:
             fe.Update()
             edges = fe.GetOutput()
             if edges.GetNumberOfPoints():
-                self._walls.append(self._add_surface(edges, 0.45, lighting=False, cull_front=False))
+                self._walls.append(self._add_surface(edges, EDGE_OPACITY, lighting=False, cull_front=False))
 
         self._time_text = self._add_text("", TIME_LABEL_POS(h), max(round(28 * k), 6), "#ffffff")
         if title:
             self._overlays.append(self._add_text(title, (round(18 * k), round(14 * k)), max(round(20 * k), 6),
-                                                 "#b8c0cc"))
+                                                 TITLE_COLOUR))
         self._layers = None      # the static layers of the splat engine, drawn at the first frame
 
         pos, focal, up = camera_for_view(bounds, config.view, width=w, height=h,

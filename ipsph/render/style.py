@@ -23,10 +23,22 @@ SURFACE_COLOUR = "#c9d3df"
 SURFACE_OPACITY = 0.18
 
 
+EDGE_OPACITY = 0.45                        # the walls' outline and creases
+
+
 SPEED_COLOURS = ("#08183a", "#1f56b4", "#6fb1ee", "#ffffff")  # dark blue -> blue -> light blue -> white
 
 
 SPEED_TITLE = "speed [m/s]"
+
+
+SCALAR_BAR_POSITION = (0.885, 0.18)        # lower left corner, normalised viewport
+
+
+SCALAR_BAR_LENGTH = 0.62                   # of the viewport height
+
+
+TITLE_COLOUR = "#b8c0cc"
 
 
 ENGINES = ("splat", "vtk")  # splat: particles rasterised by ipsph.splat over layers VTK drew once

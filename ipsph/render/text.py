@@ -6,7 +6,7 @@ import os
 
 import numpy as np
 
-from .style import SPEED_TITLE
+from .style import SCALAR_BAR_LENGTH, SCALAR_BAR_POSITION, SPEED_TITLE
 
 
 @functools.cache
@@ -45,9 +45,9 @@ def _scalar_bar(lut, scale: float = 1.0):
     bar.SetOrientationToVertical()
     bar.SetTextPositionToSucceedScalarBar()  # labels right of the bar, never over it
     bar.GetPositionCoordinate().SetCoordinateSystemToNormalizedViewport()
-    bar.GetPositionCoordinate().SetValue(0.885, 0.18)
+    bar.GetPositionCoordinate().SetValue(*SCALAR_BAR_POSITION)
     bar.SetWidth(0.09)
-    bar.SetHeight(0.62)
+    bar.SetHeight(SCALAR_BAR_LENGTH)
     bar.SetBarRatio(0.3)
     bar.SetVerticalTitleSeparation(round(14 * scale))
     bar.SetTextPad(round(6 * scale))

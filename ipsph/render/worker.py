@@ -13,6 +13,7 @@ import multiprocessing as mp
 import os
 import queue as queue_mod
 import signal
+import threading
 import time as _time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -29,7 +30,19 @@ NICENESS = 19  # lowest: renders use the cycles the solver leaves idle. At nice 
 DRAIN_NOTICE_S = 2.0       # say what the run is waiting for when the last frames take longer
 
 
-def _worker(jobs, results):
+def _exit_with_parent(parent_pid: int, every_s: float = 1.0) -> None:
+    """The worker ignores SIGINT (the run decides), so it must not outlive a run that died without
+    stopping it (SIGKILL, a crash): a daemon thread exits the process once the parent is gone."""
+    def watch():
+        while os.getppid() == parent_pid:
+            _time.sleep(every_s)
+        os._exit(0)
+    threading.Thread(target=watch, name="ipsph-render-watchdog", daemon=True).start()
+
+
+def _worker(jobs, results, parent_pid=None):
+    if parent_pid is not None:
+        _exit_with_parent(parent_pid)
     # one llvmpipe thread: the solver has the cores; llvmpipe's own threads cost more CPU than they save
     os.environ.setdefault("LP_NUM_THREADS", "1")
     try:
@@ -94,8 +107,18 @@ class BackgroundRenderer:
         self._jobs = ctx.Queue()  # bounded in bytes by submit()
         self._results = ctx.Queue()
         self._proc = ctx.Process(target=_worker, daemon=True, name="ipsph-render",
-                                 args=(self._jobs, self._results))
-        self._proc.start()
+                                 args=(self._jobs, self._results, os.getpid()))
+        # Ctrl-C in a terminal signals the whole process group. The parent decides what the worker
+        # does then (finish the frames in flight, or terminate() it), so the worker starts with
+        # SIGINT ignored: an interpreter that starts so installs no KeyboardInterrupt handler, and
+        # no traceback from the middle of a frame (or of its imports) reaches the terminal.
+        ignore = threading.current_thread() is threading.main_thread()
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if ignore else None
+        try:
+            self._proc.start()
+        finally:
+            if ignore:
+                signal.signal(signal.SIGINT, previous)
         self.rendered = 0
         self.submitted = 0
         self.ready = False       # the worker has its GL context and static layers

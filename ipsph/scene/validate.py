@@ -135,13 +135,20 @@ def _build_scene(data: dict, base_dir: Path, name: str | None, source: Path | No
                 (("time_step", TimeStepConfig), ("solver", SolverConfig), ("output", OutputConfig),
                  ("render", RenderConfig), ("surface", SurfaceConfig))}
     r = kw.get("particle_radius", default("simulation.particle_radius"))
-    _check_sections(ctx, sections["time_step"], sections["solver"], sections["render"], r)
 
     fluids_raw = _entity_list(ctx, data, "fluid")
     if not fluids_raw:
         raise ConfigError(f"{where}: no [[fluid]] table: a scene needs at least one fluid body "
                           f"(a box or a mesh)")
     fluids = tuple(_entity(ctx, "fluid", i, e, base_dir, r) for i, e in enumerate(fluids_raw))
+    try:
+        _check_sections(ctx, sections["time_step"], sections["solver"], sections["render"], r)
+    except ConfigError:
+        # A radius far too small also breaks the auto dt_max; its size is the error to report
+        # (the runner checks the count again against --max-particles before sampling).
+        from ..preflight import check_fluid_count
+        check_fluid_count(fluids, r, None)
+        raise
     boundaries = tuple(_entity(ctx, "boundary", i, e, base_dir, r)
                        for i, e in enumerate(_entity_list(ctx, data, "boundary")))
     for kind, items in (("fluid", fluids), ("boundary", boundaries)):
