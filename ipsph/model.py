@@ -135,6 +135,7 @@ class Scene:
     end_time: float = 2.0
     viscosity: float = 0.01             # XSPH zeta
     standard_viscosity: float = 0.0     # nu (m^2/s) of SPlisHSPlasH's "Standard" viscosity; 0 = off
+    fit_wall_volumes: bool = False      # Akinci volumes fitted to the rest lattice (boundary.fit_volumes)
     time_step: TimeStepConfig = TimeStepConfig()
     solver: SolverConfig = SolverConfig()
     fluids: tuple[FluidSpec, ...] = ()
