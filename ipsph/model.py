@@ -99,6 +99,7 @@ class Scene:
     end_time: float = D("simulation.end_time")
     viscosity: float = D("simulation.viscosity")
     standard_viscosity: float = D("simulation.standard_viscosity")
+    fit_wall_volumes: bool = D("simulation.fit_wall_volumes")
     time_step: TimeStepConfig = TimeStepConfig()
     solver: SolverConfig = SolverConfig()
     fluids: tuple[FluidSpec, ...] = ()

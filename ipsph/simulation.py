@@ -94,8 +94,8 @@ class Simulation:
         mass = scene.density0 * self.spacing ** 3
         self.state = ParticleState(fluid_x, fluid_v, np.full(len(fluid_x), mass), fluid_ids, self.be)
         from .sampling import rest_lattice
-        self.boundary = Boundary(boundary_x, self.support, scene.density0, rest_lattice(scene, boundary_x),
-                                 self.spacing)
+        lattice = rest_lattice(scene, boundary_x) if scene.fit_wall_volumes else None
+        self.boundary = Boundary(boundary_x, self.support, scene.density0, lattice, self.spacing)
         self.search = self.be.neighbour_search(self.support, self.boundary)
         self.method = METHODS[scene.method](scene, self.state, self.boundary, self.search, self.be, mass)
         self.time = 0.0

@@ -39,7 +39,7 @@ TANK_MAX_SPEED = 1.5
 def tank_scene(method, r=0.02, end_time=4.0):
     """A 14^3 = 2,744 particle column at rest in a closed box (method.md section 5's tank)."""
     return scene_from_dict({
-        "simulation": {"method": method, "particle_radius": r, "end_time": end_time},
+        "simulation": {"method": method, "particle_radius": r, "end_time": end_time, "fit_wall_volumes": True},
         "time_step": {"dt_max": 0.005},
         "fluid": [{"name": "column", "box": {"min": [0, 0, 0], "max": [0.6, 0.6, 0.6]}}],
         "boundary": [{"name": "tank", "role": "container", "box": {"min": [0, 0, 0], "max": [0.6, 1.0, 0.6]}}],
@@ -111,7 +111,7 @@ def tank_builds(tmp_path):
     meshes.box_mesh((-0.5, -0.5, -0.5), (0.5, 0.5, 0.5)).save(tmp_path / "unit_box.obj")
     base = tank_scene("dfsph")
     mesh = scene_from_dict({
-        "simulation": {"method": "dfsph", "particle_radius": 0.02},
+        "simulation": {"method": "dfsph", "particle_radius": 0.02, "fit_wall_volumes": True},
         "fluid": [{"name": "column", "mesh": str(tmp_path / "column.vtp")}],
         "boundary": [{"name": "tank", "role": "container", "box": {"min": [0, 0, 0], "max": [0.6, 1.0, 0.6]}}],
     }, name="tank-mesh")
@@ -120,7 +120,8 @@ def tank_builds(tmp_path):
         "RigidBodies": [{"geometryFile": "unit_box.obj", "translation": [0.3, 0.5, 0.3], "scale": [0.6, 1.0, 0.6],
                          "isDynamic": False, "isWall": True, "mapInvert": True}],
         "FluidBlocks": [{"denseMode": 0, "start": [0, 0, 0], "end": [0.6, 0.6, 0.6]}]}))
-    return {"box": base, "mesh": mesh, "splishsplash": load_scene(tmp_path / "tank.json")}
+    return {"box": base, "mesh": mesh,
+            "splishsplash": load_scene(tmp_path / "tank.json", ["simulation.fit_wall_volumes=true"])}
 
 
 def test_tank_starts_at_rest_density_however_it_is_built(tmp_path):

@@ -102,7 +102,7 @@ def test_pipeline_steps_with_every_method(path, method):
     from ipsph.simulation import Simulation, sample_scene
     scene = load_scene(path, [f"simulation.particle_radius={COARSE_R}", f"simulation.method={method}"])
     sim = Simulation(scene, *sample_scene(scene)[:3])
-    assert sim.n_fluid > 100 and sim.n_boundary > 0
+    assert sim.n_fluid > 50 and sim.n_boundary > 0
     for _ in range(3):
         stats = sim.step()
     assert sim.steps == 3 and stats.time > 0
