@@ -89,9 +89,11 @@ def test_shipped_meshes_are_closed_solids():
         assert report.closed and report.volume > 0, path.name
 
 
-# A settling lattice starts at rest density and the first steps compress it by well under a
-# percent; a broken scene (fluid inside a wall, a wrong radius) starts far above this.
-FIRST_STEPS_DENSITY_ERROR = 0.01
+# The full-mass lattice starts at rest density, and where it touches walls with Akinci's volumes
+# the first steps compress it by a few percent (measured 2.8 % mean, breaking_dam with DFSPH at
+# r = 0.05 m: the "corner pop" of method.md section 1); a fluid sampled into a wall or at a wrong
+# spacing starts above this.
+FIRST_STEPS_DENSITY_ERROR = 0.05
 
 
 @pytest.mark.parametrize("method", ["ipsph", "pf", "dfsph"])
