@@ -306,7 +306,9 @@ def test_run_without_gl_warns_once_and_keeps_the_simulation(tmp_path):
                           "--set", "simulation.particle_radius=0.04"], env=env, capture_output=True,
                          text=True, timeout=300)
     assert res.returncode == 0, res.stderr
-    warnings = [ln for ln in res.stderr.splitlines() if ln.startswith("ipsph: warning")]
+    # one line about the renders (the solver may add its own: at r = 0.04 the full-mass column's
+    # corners pop at t = 0 and a solve can stop at its cap, docs/method.md section 1)
+    warnings = [ln for ln in res.stderr.splitlines() if ln.startswith("ipsph: warning") and "render" in ln]
     assert len(warnings) == 1 and "renders skipped" in warnings[0] and "GL" in warnings[0], res.stderr
     assert len(list((out / "frames").glob("fluid_*.vtu"))) == 3
     assert not list(out.glob("renders/*.png"))
