@@ -139,13 +139,13 @@ def test_camera_explicit_and_bad_view():
 
 @pytest.mark.parametrize("shape", [(1, 1), (7, 13), (180, 320)])
 def test_png_encoder_round_trips_exactly(shape):
-    """ipsph.splat.encode_png (Up filter + zlib, hand-rolled for speed) is a valid PNG that Pillow
+    """ipsph.render.splat.encode_png (Up filter + zlib, hand-rolled for speed) is a valid PNG that Pillow
     decodes to the very same pixels: random noise and a smooth gradient with flat rows."""
     import io
 
     from PIL import Image
 
-    from ipsph.splat import encode_png
+    from ipsph.render.splat import encode_png
 
     h, w = shape
     rng = np.random.default_rng(1)

@@ -6,7 +6,7 @@ radius; the boundary as a translucent surface of the input meshes; a fixed camer
 bounds; a scalar bar "speed [m/s]" (VTK text drops '|').
 
 Two engines draw the same picture: "splat" (the default) draws the static layers once through VTK
-and rasterises the particles with Numba (ipsph.splat); "vtk" draws everything through VTK
+and rasterises the particles with Numba (ipsph.render.splat); "vtk" draws everything through VTK
 (vtkPointGaussianMapper impostors) and is the reference the tests hold the splat engine to.
 
 Headless facts (ecosystem.md): set VTK_DEFAULT_OPENGL_WINDOW=vtkEGLRenderWindow before the first

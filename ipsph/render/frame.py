@@ -245,7 +245,7 @@ class FrameRenderer:
         self._time_text.SetInput(label)
         return self._grab()
 
-    # -- splat engine: static layers drawn once through VTK, particles rasterised by ipsph.splat ----
+    # -- splat engine: static layers drawn once through VTK, particles rasterised by ipsph.render.splat ----
 
     def _grab(self) -> np.ndarray:
         """Render and read the window back: (h, w, 3) uint8, rows top down."""
@@ -302,7 +302,7 @@ class FrameRenderer:
         return dist
 
     def _bake(self) -> None:
-        """Draw the static layers once (see ipsph.splat): walls, their transmittance and depth,
+        """Draw the static layers once (see ipsph.render.splat): walls, their transmittance and depth,
         background, overlays, and the composed empty frame."""
         from . import splat
 

@@ -8,7 +8,7 @@ import numpy as np
 
 
 def save_png(img: np.ndarray, path) -> Path:
-    """PNG through `ipsph.splat.encode_png` (Up filter, zlib level 1: ~2.5x faster than Pillow's
+    """PNG through `ipsph.render.splat.encode_png` (Up filter, zlib level 1: ~2.5x faster than Pillow's
     fastest level here), renamed into place so a viewer never sees half a file; parent folders
     are created. Releases the GIL for most of its time (the filter is nogil, zlib too)."""
     from .splat import encode_png

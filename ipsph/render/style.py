@@ -41,7 +41,7 @@ SCALAR_BAR_LENGTH = 0.62                   # of the viewport height
 TITLE_COLOUR = "#b8c0cc"
 
 
-ENGINES = ("splat", "vtk")  # splat: particles rasterised by ipsph.splat over layers VTK drew once
+ENGINES = ("splat", "vtk")  # splat: particles rasterised by ipsph.render.splat over layers VTK drew once
 
 
 def _ui_scale(height: int) -> float:
