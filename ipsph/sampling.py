@@ -159,18 +159,18 @@ def _sample_fluid(spec: model.FluidSpec, r: float, frame=None) -> np.ndarray:
     else:
         b = np.asarray(report.bounds, dtype=np.float64)
         corners = np.array([[b[i], b[2 + j], b[4 + k]] for i in (0, 1) for j in (0, 1) for k in (0, 1)])
-        lattice = _frame_points(frame, corners, d, 0.0)
+        lattice = _frame_points(frame, corners, d)
     inside = inside_mesh(lattice, mesh, d, closed=report.closed)
     return np.ascontiguousarray(lattice[inside])
 
 
-def _frame_points(frame, points: np.ndarray, d: float, pad: float) -> np.ndarray:
-    """The points of the lattice `frame` = (origin, rotation rows) that lie in the box spanned by
-    `points` (in lattice coordinates), widened by `pad` metres."""
+def _frame_points(frame, points: np.ndarray, d: float) -> np.ndarray:
+    """The points of the lattice `frame` = (origin, rotation rows) in the box that `points` span
+    (in lattice coordinates)."""
     origin, rot = frame
     local = (np.asarray(points, dtype=np.float64) - origin) @ rot.T / d
-    lo = np.floor(local.min(axis=0) - pad / d - 1e-9).astype(np.int64)
-    hi = np.ceil(local.max(axis=0) + pad / d + 1e-9).astype(np.int64)
+    lo = np.floor(local.min(axis=0) - 1e-9).astype(np.int64)
+    hi = np.ceil(local.max(axis=0) + 1e-9).astype(np.int64)
     axes = [np.arange(lo[k], hi[k] + 1, dtype=np.float64) for k in range(3)]
     ijk = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
     return np.ascontiguousarray(origin + d * (ijk @ rot))
