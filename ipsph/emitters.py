@@ -139,6 +139,14 @@ def check_capacity(scene: Scene, n_fluid: int, limit: int) -> int:
     return total
 
 
+def extent_points(scene: Scene) -> np.ndarray:
+    """Points the scene's extent must cover besides fluid and walls: nozzles, domain corners."""
+    pts = [np.asarray(e.position, dtype=np.float64) for e in scene.emitters]
+    if scene.domain.min is not None:
+        pts += [np.asarray(scene.domain.min, dtype=np.float64), np.asarray(scene.domain.max, dtype=np.float64)]
+    return np.array(pts).reshape(-1, 3)
+
+
 def _container_bounds(scene: Scene) -> list[tuple[np.ndarray, np.ndarray]]:
     from .sampling import boundary_surface
     out = []
