@@ -168,8 +168,11 @@ def restore(scene: Scene, ck: Checkpoint):
     from .simulation import Simulation
     sd = state_dict(ck)
     p = sd["particles"]
-    sim = Simulation(scene, p["x"], p["v"], sd["boundary"]["x"], fluid_ids=p["id"],
-                     capacity=(sd.get("flow") or {}).get("capacity"))
+    capacity = None
+    if scene.emitters:  # what it holds plus what is still to come by this run's end_time
+        from .emitters import resumed_capacity
+        capacity = resumed_capacity(scene, len(p["x"]), sd.get("flow"))
+    sim = Simulation(scene, p["x"], p["v"], sd["boundary"]["x"], fluid_ids=p["id"], capacity=capacity)
     try:
         sim.load_state_dict(sd)
     except (ValueError, KeyError) as exc:

@@ -147,6 +147,23 @@ def extent_points(scene: Scene) -> np.ndarray:
     return np.array(pts).reshape(-1, 3)
 
 
+def resumed_capacity(scene: Scene, n_now: int, flow_state: dict | None) -> int:
+    """The capacity of a run resumed with `flow_state` (a checkpoint's): the particles it holds
+    plus what the emitters still emit by this scene's end_time (--resume may give a later one)."""
+    done = (flow_state or {}).get("emitted_layers") or [0] * len(scene.emitters)
+    return n_now + sum(max(0, n.layers - k) * n.per_layer for n, k in zip(nozzles(scene), done))
+
+
+def check_resumed_capacity(scene: Scene, n_now: int, flow_state: dict | None, limit: int) -> int:
+    """ConfigError when a resumed run would exceed `limit` (--max-particles) by its end_time."""
+    total = resumed_capacity(scene, n_now, flow_state)
+    if total > limit:
+        raise ConfigError(f"--resume: the run holds {n_now:,} particles and its emitters would add "
+                          f"{total - n_now:,} more by simulation.end_time = {scene.end_time:g} s: {total:,} in all, "
+                          f"over the limit of {limit:,} (--max-particles); resume with an earlier --end-time")
+    return total
+
+
 def _container_bounds(scene: Scene) -> list[tuple[np.ndarray, np.ndarray]]:
     from .sampling import boundary_surface
     out = []

@@ -127,6 +127,11 @@ def _checked_run(scene: Scene, opts: RunOptions, clock: RunClock) -> int:
     out = opts.out_dir
     check_output_folder(out, opts.overwrite, opts.resume)
     resume = _load_resume(out, scene) if opts.resume else None
+    if resume is not None and scene.emitters:  # a later --end-time emits more: check the plan again
+        from .emitters import check_resumed_capacity
+        from .preflight import default_max_particles
+        check_resumed_capacity(scene, len(resume.arrays["state.x"]), resume.scalars.get("flow"),
+                               opts.max_particles or default_max_particles())
     if resume is None:
         n_fluid = check_size(scene, opts.max_particles)  # first: it also runs the mesh checks (open, zero volume)
         check_geometry(scene)

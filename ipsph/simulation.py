@@ -262,7 +262,7 @@ class Simulation:
                 "search": self.search.state_dict(), "method": self.method.state_dict(),
                 "clock": {"time": self.time, "steps": self.steps, "clamped_steps": int(self.clamped_steps),
                           "dt_next": self.dt_next, "next_clamped": bool(self._clamped)},
-                **({"flow": {**self.flow.state_dict(), "capacity": self.state.capacity}} if self.flow else {})}
+                **({"flow": self.flow.state_dict()} if self.flow else {})}
 
     def load_state_dict(self, d: dict) -> None:
         """Continue from `state_dict()` of a Simulation of the same scene (ValueError if it does not

@@ -113,7 +113,7 @@ def test_a_checkpoint_mid_emission_continues_bit_identically(tmp_path):
     path = tmp_path / "checkpoint.npz"
     ckpt.save(path, a, frames=0, last_frame_time=None, solver_maxed=0, threads=1)
     b = ckpt.restore(scene, ckpt.load(path))
-    assert b.state.capacity == a.state.capacity
+    assert b.state.capacity == b.n_fluid + b.flow.remaining() <= a.state.capacity
     for _ in range(60):
         a.step()
         b.step()
@@ -220,3 +220,25 @@ def test_capacity_over_max_particles_exits_2_before_allocation(tmp_path, capsys)
     err = capsys.readouterr().err.strip()
     assert code == 2 and err.count("\n") == 0 and "emitter[0] 'tap'" in err and "--max-particles" in err, err
     assert not out.exists()
+
+
+def test_resume_with_a_later_end_time_plans_the_extra_emission(tmp_path, capsys):
+    """`--resume --end-time T2` past the first run's end: the emitters keep going (the capacity is
+    re-planned from what the checkpoint holds and what is still due), bit-identically to a run
+    straight to T2; a plan over --max-particles is refused (exit 2) before anything is touched."""
+    from ipsph.io import vtu
+    tap = Path(__file__).resolve().parents[1] / "pipelines" / "tap.toml"
+    base = ["run", str(tap), "--quiet", "--no-render", "--threads", "1", "--set", "simulation.particle_radius=0.04",
+            "--set", "output.checkpoint_interval=0.12"]
+    a, b = tmp_path / "a", tmp_path / "b"
+    assert cli.main([*base, "-o", str(a), "--end-time", "0.48"]) == 0
+    assert cli.main([*base, "-o", str(b), "--end-time", "0.24"]) == 0
+    assert cli.main([*base, "-o", str(b), "--end-time", "0.48", "--max-particles", "5", "--resume"]) == 2
+    assert "--max-particles" in capsys.readouterr().err
+    assert cli.main([*base, "-o", str(b), "--end-time", "0.48", "--resume"]) == 0
+    last = sorted((a / "frames").glob("fluid_*.vtu"))[-1].name
+    xa, fa, _ = vtu.read_particles(a / "frames" / last)
+    xb, fb, _ = vtu.read_particles(b / "frames" / last)
+    assert len(xa) > len(vtu.read_particles(b / "frames" / "fluid_000006.vtu")[0]) > 0
+    np.testing.assert_array_equal(xa, xb)
+    np.testing.assert_array_equal(fa["id"], fb["id"])
