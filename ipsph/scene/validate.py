@@ -193,7 +193,7 @@ def _unknown(ctx: _Ctx, key: str, prefix: str, allowed: list[str]) -> ConfigErro
     else:
         # the right key in the wrong table: [simulation] cfl_factor -> time_step.cfl_factor
         elsewhere = [p.path for p in PARAMS if p.key == key and p.path != "source"]
-        elsewhere = [re.sub(r"^(fluid|boundary)\.", r"\1[i].", e) for e in elsewhere]
+        elsewhere = [re.sub(rf"^({'|'.join(ENTITIES)})\.", r"\1[i].", e) for e in elsewhere]
         hint = ("; did you mean " + " or ".join(repr(e) for e in elsewhere) + "?"
                 if elsewhere else "")
     where_ = f"[{prefix}]" if prefix else "the top level"
