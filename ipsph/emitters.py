@@ -164,6 +164,21 @@ def check_resumed_capacity(scene: Scene, n_now: int, flow_state: dict | None, li
     return total
 
 
+def wall_notes(scene: Scene, boundary_x: np.ndarray) -> list[str]:
+    """One line per nozzle whose first two layers would come closer than 2r to a wall particle
+    (the layer would start inside the wall's support and be pushed off violently)."""
+    from .point_kernels import nearest_distance
+    notes = []
+    d = spacing(scene.particle_radius)
+    for i, nz in enumerate(nozzles(scene)):
+        pts = np.concatenate([nz.layer_points(0.0), nz.layer_points(d)])
+        near = float(nearest_distance(pts, boundary_x, d).min()) if len(boundary_x) else math.inf
+        if near < d:
+            notes.append(f"emitter[{i}] '{nz.spec.name}': its first layers come within {near:.3g} m of a wall "
+                         f"(closer than 2r = {d:g} m): move the nozzle away from the wall or make it smaller")
+    return notes
+
+
 def _container_bounds(scene: Scene) -> list[tuple[np.ndarray, np.ndarray]]:
     from .sampling import boundary_surface
     out = []

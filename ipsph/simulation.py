@@ -73,6 +73,9 @@ def sample_scene(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray, list
             notes.append(f"{removed} of {len(fluid_x)} fluid particles overlapped a wall or lay outside the "
                          f"containers and were removed")
             fluid_x, fluid_v = fluid_x[kept], fluid_v[kept]
+    if scene.emitters:
+        from .emitters import wall_notes
+        notes += wall_notes(scene, boundary_x)
     return np.ascontiguousarray(fluid_x), np.ascontiguousarray(fluid_v), np.ascontiguousarray(boundary_x), notes
 
 

@@ -242,3 +242,13 @@ def test_resume_with_a_later_end_time_plans_the_extra_emission(tmp_path, capsys)
     assert len(xa) > len(vtu.read_particles(b / "frames" / "fluid_000006.vtu")[0]) > 0
     np.testing.assert_array_equal(xa, xb)
     np.testing.assert_array_equal(fa["id"], fb["id"])
+
+
+def test_a_nozzle_against_a_wall_is_noted():
+    """A nozzle whose first layer would sit on a wall's particles gets a note; the tap does not."""
+    from ipsph.simulation import sample_scene
+    tap = load_scene(Path(__file__).resolve().parents[1] / "pipelines" / "tap.toml")
+    assert not [n for n in sample_scene(tap)[3] if "emitter" in n]
+    scene = jet(position=[-0.99, 0.0, 0.0])   # 1 cm from the tank's wall at x = -1
+    notes = [n for n in sample_scene(scene)[3] if "emitter[0] 'jet'" in n]
+    assert len(notes) == 1 and "closer than 2r" in notes[0]
