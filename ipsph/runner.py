@@ -282,7 +282,7 @@ def _previous_info(out: Path) -> dict:
         old = provenance.read_run_json(out / out_io.RUN_JSON)
     except IpsphError:
         return {}
-    keep = {k: old[k] for k in ("started", "resumed", "domain_bounds") if k in old}
+    keep = {k: old[k] for k in ("started", "resumed", "domain_bounds", "fluid_particles") if k in old}  # the count at t = 0
     rng = (old.get("render") or {}).get("speed_range")
     if rng:
         keep["render_speed_range"] = tuple(rng)
