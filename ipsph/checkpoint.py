@@ -85,7 +85,7 @@ def save(path: Path, sim, *, frames: int, last_frame_time: float | None, solver_
                "next_clamped": clock["next_clamped"],
                "solver_maxed": int(solver_maxed), "frames": int(frames), "last_frame_time": last_frame_time,
                "threads": int(threads), "k_fluid": search["k_fluid"], "k_boundary": search["k_boundary"],
-               "method": sim.scene.method.value}
+               "method": sim.scene.method.value, "flow": sd.get("flow")}
     # floats go through repr in JSON: exact round trip
     data["scalars"] = np.array(json.dumps(scalars))
     data["fingerprint"] = np.array(scene_fingerprint(sim.scene))
@@ -159,7 +159,8 @@ def state_dict(ck: Checkpoint) -> dict:
             "search": {"k_fluid": s["k_fluid"], "k_boundary": s["k_boundary"], "grid": grid or None},
             "method": {"dt_prev": s["dt_prev"]},
             "clock": {"time": s["time"], "steps": s["steps"], "clamped_steps": s["clamped_steps"],
-                      "dt_next": s["dt_next"], "next_clamped": s.get("next_clamped", False)}}
+                      "dt_next": s["dt_next"], "next_clamped": s.get("next_clamped", False)},
+            **({"flow": s["flow"]} if s.get("flow") else {})}
 
 
 def restore(scene: Scene, ck: Checkpoint):
@@ -167,7 +168,11 @@ def restore(scene: Scene, ck: Checkpoint):
     from .simulation import Simulation
     sd = state_dict(ck)
     p = sd["particles"]
-    sim = Simulation(scene, p["x"], p["v"], sd["boundary"]["x"], fluid_ids=p["id"])
+    capacity = None
+    if scene.emitters:  # what it holds plus what is still to come by this run's end_time
+        from .emitters import resumed_capacity
+        capacity = resumed_capacity(scene, len(p["x"]), sd.get("flow"))
+    sim = Simulation(scene, p["x"], p["v"], sd["boundary"]["x"], fluid_ids=p["id"], capacity=capacity)
     try:
         sim.load_state_dict(sd)
     except (ValueError, KeyError) as exc:

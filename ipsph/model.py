@@ -55,6 +55,31 @@ class BoundarySpec(Body):
     role: Role = Role(D("boundary.role"))
 
 
+@dataclass(frozen=True)
+class EmitterSpec:
+    """A nozzle ([[emitter]]): fluid layers leave `position` along `direction` at `velocity`
+    from start_time to end_time (ipsph.emitters). Sizes in metres (width/height or radius)."""
+    name: str
+    position: Vec3
+    shape: str = D("emitter.shape")
+    direction: Vec3 = D("emitter.direction")
+    height_axis: Vec3 | None = None
+    width: float | None = None
+    height: float | None = None
+    radius: float | None = None
+    velocity: float = D("emitter.velocity")
+    start_time: float = D("emitter.start_time")
+    end_time: float | None = None
+
+
+@dataclass(frozen=True)
+class SinkSpec:
+    """An outflow box ([[sink]]): fluid inside it is removed after every step."""
+    name: str
+    box_min: Vec3
+    box_max: Vec3
+
+
 _TYPES = {"float": float, "int": int, "bool": bool, "choice": str, "str": str, "path": Path,
           "vec3": tuple[float, float, float], "range2": tuple[float, float], "fields": tuple[str, ...]}
 
@@ -85,6 +110,7 @@ SolverConfig = _section("SolverConfig", "solver", "[solver] and its per-method s
                         {"divergence": DivergenceConfig, "dfsph": DFSPHConfig, "pf": PFConfig, "ipsph": IPSPHConfig})
 OutputConfig = _section("OutputConfig", "output", "[output]: what is written, where, how often.")
 RenderConfig = _section("RenderConfig", "render", "[render]: the offscreen renders.")
+DomainConfig = _section("DomainConfig", "domain", "[domain]: the box outside which fluid is removed (both corners or none).")
 SurfaceConfig = _section("SurfaceConfig", "surface", "[surface]: surface reconstruction (splashsurf through "
                          "ipsph.surface); lengths in multiples of r.")
 
@@ -104,6 +130,9 @@ class Scene:
     solver: SolverConfig = SolverConfig()
     fluids: tuple[FluidSpec, ...] = ()
     boundaries: tuple[BoundarySpec, ...] = ()
+    emitters: tuple[EmitterSpec, ...] = ()
+    sinks: tuple[SinkSpec, ...] = ()
+    domain: DomainConfig = DomainConfig()
     output: OutputConfig = OutputConfig()
     render: RenderConfig = RenderConfig()
     surface: SurfaceConfig = SurfaceConfig()

@@ -13,12 +13,16 @@ import numpy as np
 class ParticleState:
     """Named numpy arrays with a common first dimension (the fluid particles)."""
 
-    def __init__(self, x: np.ndarray, v: np.ndarray, m: np.ndarray, ids: np.ndarray | None = None, backend=None):
+    def __init__(self, x: np.ndarray, v: np.ndarray, m: np.ndarray, ids: np.ndarray | None = None, backend=None,
+                 capacity: int | None = None):
         if backend is None:
             from .backends import get_backend
             backend = get_backend()
         self.be = backend  # allocates the arrays and reorders them
         n = len(x)
+        # the most particles this run can hold (emitters: ipsph.emitters); the methods size their
+        # scratch by it, the arrays here always have the active count n rows
+        self.capacity = max(n, int(capacity or 0))
         self._names: list[str] = []
         self.add("x", backend.asarray(x))
         self.add("v", backend.asarray(v))
@@ -51,6 +55,19 @@ class ParticleState:
         """Reorder every registered array by `perm` (new[i] = old[perm[i]])."""
         for name in self._names:
             setattr(self, name, self.be.take(getattr(self, name), perm))
+
+    def append(self, rows: dict[str, np.ndarray]) -> None:
+        """Add particles at the end (an emitter's layer): `rows` gives x, v, m, id on the host;
+        every other registered array (warm starts, pressure) starts at zero for them."""
+        k = len(rows["x"])
+        for name in self._names:
+            a = getattr(self, name)
+            new = rows[name] if name in rows else np.zeros((k, *a.shape[1:]), dtype=a.dtype)
+            setattr(self, name, self.be.concat(a, self.be.asarray(new, dtype=a.dtype)))
+
+    def keep(self, index: np.ndarray) -> None:
+        """Keep only the particles at `index` (ascending), in that order: removal by compaction."""
+        self.permute(self.be.asarray(index, dtype="int64"))
 
     def arrays(self) -> dict[str, np.ndarray]:
         return {name: getattr(self, name) for name in self._names}

@@ -46,8 +46,14 @@ def check_render_size(scene: Scene) -> None:
 
 
 def check_size(scene: Scene, max_particles: int | None) -> int:
-    """Estimate the fluid count before sampling and refuse what would not fit (exit 2)."""
-    return check_fluid_count(scene.fluids, scene.particle_radius, max_particles)
+    """Estimate the fluid count before sampling and refuse what would not fit (exit 2); with
+    emitters, the planned capacity (initial fluid + every layer they can emit) must fit too."""
+    n = check_fluid_count(scene.fluids, scene.particle_radius, max_particles)
+    if scene.emitters:
+        from .emitters import check_capacity, check_placement
+        check_placement(scene)
+        n = check_capacity(scene, n, max_particles or default_max_particles())
+    return n
 
 
 def check_fluid_count(fluids, radius: float, max_particles: int | None) -> int:

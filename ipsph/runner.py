@@ -127,6 +127,11 @@ def _checked_run(scene: Scene, opts: RunOptions, clock: RunClock) -> int:
     out = opts.out_dir
     check_output_folder(out, opts.overwrite, opts.resume)
     resume = _load_resume(out, scene) if opts.resume else None
+    if resume is not None and scene.emitters:  # a later --end-time emits more: check the plan again
+        from .emitters import check_resumed_capacity
+        from .preflight import default_max_particles
+        check_resumed_capacity(scene, len(resume.arrays["state.x"]), resume.scalars.get("flow"),
+                               opts.max_particles or default_max_particles())
     if resume is None:
         n_fluid = check_size(scene, opts.max_particles)  # first: it also runs the mesh checks (open, zero volume)
         check_geometry(scene)
@@ -173,7 +178,7 @@ def _run(scene: Scene, opts: RunOptions, resume, renderer, clock: RunClock, surf
         fluid_x, fluid_v, boundary_x, notes = sample_scene(scene)
         for note in notes:
             print(f"ipsph: note: {note}", file=sys.stderr)
-        if len(fluid_x) == 0:
+        if len(fluid_x) == 0 and not scene.emitters:
             from .errors import ConfigError
             raise ConfigError("the scene has no fluid particles after sampling (check [[fluid]] entries and "
                               "that the fluid lies inside its container)")
@@ -186,8 +191,9 @@ def _run(scene: Scene, opts: RunOptions, resume, renderer, clock: RunClock, surf
             print(f"ipsph: note: resuming with {numba.get_num_threads()} threads, the checkpoint was written with "
                   f"{threads}: pass --threads {threads} for a continuation bit-identical to an uninterrupted run",
                   file=sys.stderr)
-    lo = np.minimum(fluid_x.min(axis=0), boundary_x.min(axis=0)) if len(boundary_x) else fluid_x.min(axis=0)
-    hi = np.maximum(fluid_x.max(axis=0), boundary_x.max(axis=0)) if len(boundary_x) else fluid_x.max(axis=0)
+    from .emitters import extent_points
+    pts = np.concatenate([fluid_x, boundary_x, extent_points(scene)])
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
     info = {"scene": scene_to_dict(scene), "scene_file": str(scene.source) if scene.source else None,
             "method": scene.method.value, "status": "running", "completed": False, "exit_code": None,
             "particle_radius": scene.particle_radius, "fluid_particles": sim.n_fluid,
@@ -276,7 +282,7 @@ def _previous_info(out: Path) -> dict:
         old = provenance.read_run_json(out / out_io.RUN_JSON)
     except IpsphError:
         return {}
-    keep = {k: old[k] for k in ("started", "resumed", "domain_bounds") if k in old}
+    keep = {k: old[k] for k in ("started", "resumed", "domain_bounds", "fluid_particles") if k in old}  # the count at t = 0
     rng = (old.get("render") or {}).get("speed_range")
     if rng:
         keep["render_speed_range"] = tuple(rng)
@@ -288,6 +294,8 @@ def _write_info(out: Path, info: dict, sim: Simulation, folder: RunFolder) -> No
                 solver_maxed=folder.solver_maxed,
                 timings_ms={p: float(np.median(v)) for p, v in folder.timings.items()},
                 render_seconds=folder.render_seconds, write_seconds=folder.write_seconds)
+    if sim.flow is not None:  # emitted / removed totals, ids (docs/output-format.md)
+        info.update(flow=sim.flow.summary(), fluid_particles_now=sim.n_fluid)
     provenance.write_run_json(out / out_io.RUN_JSON, info)
 
 

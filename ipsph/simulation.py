@@ -38,6 +38,8 @@ class StepStats(StepReport):
     max_speed: float = 0.0
     kinetic_energy: float = 0.0
     dt_clamped: bool = False
+    emitted: int = 0                  # particles emitted at the end of the step (ipsph.emitters)
+    removed: int = 0                  # particles removed by sinks and the domain box
 
 
 # Explicit Standard viscosity is stable while nu dt lambda_max <= 2, lambda_max the largest
@@ -71,6 +73,9 @@ def sample_scene(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray, list
             notes.append(f"{removed} of {len(fluid_x)} fluid particles overlapped a wall or lay outside the "
                          f"containers and were removed")
             fluid_x, fluid_v = fluid_x[kept], fluid_v[kept]
+    if scene.emitters:
+        from .emitters import wall_notes
+        notes += wall_notes(scene, boundary_x)
     return np.ascontiguousarray(fluid_x), np.ascontiguousarray(fluid_v), np.ascontiguousarray(boundary_x), notes
 
 
@@ -83,7 +88,7 @@ class Simulation:
     """One fluid simulation: particle state, static walls, a method and the clock."""
 
     def __init__(self, scene: Scene, fluid_x: np.ndarray, fluid_v: np.ndarray, boundary_x: np.ndarray,
-                 fluid_ids: np.ndarray | None = None, backend: str | Backend = "cpu"):
+                 fluid_ids: np.ndarray | None = None, backend: str | Backend = "cpu", capacity: int | None = None):
         self.scene = scene
         self.be = get_backend(backend) if isinstance(backend, str) else backend
         r = scene.particle_radius
@@ -92,7 +97,14 @@ class Simulation:
         # every particle carries the water of its lattice cell, rho0 d^3 (method.md section 1); one
         # fluid mass: the passes take it as a scalar
         mass = scene.density0 * self.spacing ** 3
-        self.state = ParticleState(fluid_x, fluid_v, np.full(len(fluid_x), mass), fluid_ids, self.be)
+        self.flow = None  # emitters, sinks, domain box (ipsph.emitters); None: a fixed particle count
+        if scene.emitters or scene.sinks or scene.domain.min is not None:
+            from .emitters import Flow, planned_emission
+            first_id = int(np.max(fluid_ids)) + 1 if fluid_ids is not None and len(fluid_ids) else len(fluid_x)
+            self.flow = Flow(scene, first_id)
+            if capacity is None:
+                capacity = len(fluid_x) + planned_emission(scene)
+        self.state = ParticleState(fluid_x, fluid_v, np.full(len(fluid_x), mass), fluid_ids, self.be, capacity)
         from .sampling import rest_lattice
         lattice = rest_lattice(scene, boundary_x) if scene.fit_wall_volumes else None
         self.boundary = Boundary(boundary_x, self.support, scene.density0, lattice, self.spacing)
@@ -124,7 +136,10 @@ class Simulation:
         return cls(scene, fluid_x, fluid_v, boundary_x)
 
     def _domain(self, boundary_x):
-        """Fluid leaving the containers' bounds (plus one support radius) has escaped."""
+        """Fluid leaving the containers' bounds (plus one support radius) has escaped; with a
+        [domain] box, fluid outside it is removed, so nothing can escape it."""
+        if self.scene.domain.min is not None:
+            return np.asarray(self.scene.domain.min) - self.support, np.asarray(self.scene.domain.max) + self.support
         if not any(b.role == Role.CONTAINER for b in self.scene.boundaries) or len(boundary_x) == 0:
             return np.full(3, -np.inf), np.full(3, np.inf)
         return boundary_x.min(axis=0) - self.support, boundary_x.max(axis=0) + self.support
@@ -154,6 +169,9 @@ class Simulation:
             self._fail(self._first_unhealthy(), str(exc))
         self.time += dt
         self.steps += 1
+        emitted = removed = 0
+        if self.flow is not None:  # emit, remove: the count changes here only
+            emitted, removed = self.flow.after_step(self)
         st = self.state
         bad = self._first_unhealthy()
         if bad >= 0:
@@ -164,7 +182,7 @@ class Simulation:
         self.dt_next, self._clamped = self._cfl(vmax)
         rep.timings["step"] = time.perf_counter() - t0
         return StepStats(**vars(rep), step=self.steps, time=self.time, max_speed=vmax, kinetic_energy=ke,
-                         dt_clamped=clamped)
+                         dt_clamped=clamped, emitted=emitted, removed=removed)
 
     def _first_unhealthy(self) -> int:
         return self.be.first_unhealthy(self.state.x, self.state.v, self.domain[0], self.domain[1])
@@ -246,7 +264,8 @@ class Simulation:
         return {"particles": self.state.state_dict(), "boundary": self.boundary.state_dict(),
                 "search": self.search.state_dict(), "method": self.method.state_dict(),
                 "clock": {"time": self.time, "steps": self.steps, "clamped_steps": int(self.clamped_steps),
-                          "dt_next": self.dt_next, "next_clamped": bool(self._clamped)}}
+                          "dt_next": self.dt_next, "next_clamped": bool(self._clamped)},
+                **({"flow": self.flow.state_dict()} if self.flow else {})}
 
     def load_state_dict(self, d: dict) -> None:
         """Continue from `state_dict()` of a Simulation of the same scene (ValueError if it does not
@@ -260,6 +279,9 @@ class Simulation:
         self.time, self.steps = float(c["time"]), int(c["steps"])
         self.clamped_steps = int(c["clamped_steps"])
         self.dt_next, self._clamped = float(c["dt_next"]), bool(c["next_clamped"])
+        if self.flow is not None:
+            self.flow.load_state_dict(d["flow"])
+        self.method.resize(self.state.n)
         self.method.load_state_dict(d["method"])
         self.method.prepare()
 

@@ -144,13 +144,13 @@ def test_json_syntax_error_has_line_and_column(tmp_path):
     ({"FluidBlocks": [{**BLOCK, "denseMode": 1}]}, "FluidBlocks[0].denseMode: 1 is not supported"),
     ({"FluidBlocks": [BLOCK], "RigidBodies": [{"geometryFile": "box.obj", "isDynamic": True}]},
      "RigidBodies[0].isDynamic: dynamic rigid bodies are not supported"),
-    ({"FluidBlocks": [BLOCK], "Emitters": [{"width": 5}]}, "Emitters: not supported"),
+    ({"FluidBlocks": [BLOCK], "Emitters": [{"type": 2}]}, "Emitters[0].type: 2 is not an emitter type"),
     ({"FluidModels": [{"particleFile": "bunny.bgeo"}]}, "is a partio particle file"),
     ({"Configuration": {"particleRadius": "small"}, "FluidBlocks": [BLOCK]},
      "Configuration.particleRadius: expected a number"),
     ({"FluidBlocks": [BLOCK], "Materials": [{"id": "A", "density0": 1000},
                                             {"id": "B", "density0": 500}]}, "multiphase"),
-    ({"Configuration": {"particleRadius": 0.025}}, "no FluidBlocks or FluidModels"),
+    ({"Configuration": {"particleRadius": 0.025}}, "no FluidBlocks, FluidModels or Emitters"),
 ])
 def test_unsupported_physics_is_refused(tmp_path, data, fragment):
     with pytest.raises(ConfigError, match=re.escape(fragment)):

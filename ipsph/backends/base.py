@@ -61,7 +61,9 @@ class Backend:
     def copy(self, dst, src) -> None: raise NotImplementedError
     def axpy(self, y, alpha: float, x) -> None: raise NotImplementedError  # y += alpha x
     def scale(self, a, c: float) -> None: raise NotImplementedError        # a *= c
-    def take(self, a, perm) -> Array: raise NotImplementedError            # new[i] = a[perm[i]]
+    def take(self, a, perm) -> Array: raise NotImplementedError            # new[i] = a[perm[i]]; len(perm) <= len(a)
+    def concat(self, a, b) -> Array: raise NotImplementedError             # a new array: a's rows, then b's
+    def head(self, a, n: int) -> Array: raise NotImplementedError          # a view of the first n rows (no copy)
     def untake(self, a, perm) -> None: raise NotImplementedError           # a[perm[i]] = old a[i], in place
     def mean(self, a) -> float: raise NotImplementedError
     def mean_positive(self, a) -> float: raise NotImplementedError         # mean of max(a, 0)

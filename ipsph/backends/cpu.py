@@ -44,6 +44,12 @@ class CPUBackend(Backend):
     def take(self, a, perm):
         return np.take(a, perm, axis=0)  # faster than a[perm] (docs/performance.md)
 
+    def concat(self, a, b):
+        return np.concatenate((a, b))
+
+    def head(self, a, n):
+        return a[:n]
+
     def untake(self, a, perm):
         a[perm] = a.copy()
 

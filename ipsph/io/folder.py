@@ -177,15 +177,19 @@ class RunFolder:
         # crashes it, not the run, and it starts while the solver sets up (a probe costs ~1 s).
         from .. import render
         sim, scene = self.sim, self.scene
-        speed = max((float(np.linalg.norm(f.velocity)) for f in scene.fluids), default=0.0)
+        speed = max([float(np.linalg.norm(f.velocity)) for f in scene.fluids] + [e.velocity for e in scene.emitters],
+                    default=0.0)
         bounds = self.info["domain_bounds"]
-        top = float(sim.positions[:, 1].max()) if sim.n_fluid else bounds[3]
+        tops = [float(sim.positions[:, 1].max())] if sim.n_fluid else []
+        tops += [float(e.position[1]) for e in scene.emitters]
+        top = max(tops) if tops else bounds[3]
         rng = scene.render.speed_range or self.info.pop("render_speed_range", None) \
             or render.default_speed_range(speed, scene.gravity, top, bounds[2])
         self.info["render"] = {**_asdict(scene.render), "enabled": True, "speed_range": list(rng)}
         surface = self.out / io.BOUNDARY_SURFACE if self.surface is not None else None
         worker.configure(scene.render, bounds, scene.particle_radius, rng, surface,
-                         title=f"{scene.name} - {scene.method.value.upper()} - {sim.n_fluid:,} particles")
+                         title=f"{scene.name} - {scene.method.value.upper()} - " + (
+                             f"{sim.n_fluid:,} particles" if sim.flow is None else "emitters and sinks"))
         return worker
 
     def frame(self, sim, k: int) -> None:

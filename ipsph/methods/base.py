@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import time
 from contextlib import contextmanager
-from dataclasses import dataclass, field, fields, is_dataclass
+from dataclasses import dataclass, field, fields, is_dataclass, replace
 
 from ..backends import Backend
 from ..boundary import Boundary
@@ -68,6 +68,15 @@ class PairCache:
         return self._store.nbytes
 
 
+def _head(obj, be: Backend, n: int, capacity: int):
+    """The scratch container with every array of `capacity` rows replaced by a view of its first n."""
+    if is_dataclass(obj):
+        return replace(obj, **{f.name: _head(getattr(obj, f.name), be, n, capacity) for f in fields(obj)})
+    if hasattr(obj, "shape") and len(obj.shape) and obj.shape[0] == capacity and obj is not be.NO_PAIRS:
+        return be.head(obj, n)
+    return obj
+
+
 def _arrays(obj):
     """The arrays in a (nested) scratch dataclass."""
     if is_dataclass(obj):
@@ -96,6 +105,19 @@ class Method:
         state.zeros("pressure")                     # output field, follows reordering
         self.dt_prev: float | None = None
         self.report = StepReport()
+
+    # -- scratch at capacity, used at the active count ---------------------------------------
+    def allocate_scratch(self, data_cls) -> None:
+        """`self.data`: the method's scratch, allocated once for the state's capacity and used
+        through views of its first n rows (the same arrays when n = capacity: no emitters)."""
+        self._scratch = data_cls.allocate(self.be, self.state.capacity)
+        self.resize(self.state.n)
+
+    def resize(self, n: int) -> None:
+        """The particle count changed (emission, removal): re-view the scratch at n rows. The
+        caller then runs `prepare()`, which recomputes what the method derives from positions."""
+        cap = self.state.capacity
+        self.data = self._scratch if n == cap else _head(self._scratch, self.be, n, cap)
 
     # -- bookkeeping --------------------------------------------------------------------------
     @contextmanager
@@ -141,7 +163,7 @@ class Method:
     @property
     def nbytes(self) -> int:
         """Memory of the method's own arrays: its scratch container and the pair cache."""
-        unique = {id(a): a for a in (*_arrays(self.data), self.pairs._store)}
+        unique = {id(a): a for a in (*_arrays(getattr(self, "_scratch", self.data)), self.pairs._store)}
         return sum(int(a.nbytes) for a in unique.values())
 
     @property

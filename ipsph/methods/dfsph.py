@@ -41,7 +41,7 @@ class DFSPH(Method):
         super().__init__(*args)
         self.state.zeros("k_div")   # total divergence stiffness of the last step (warm start)
         self.state.zeros("k_dens")  # total density stiffness of the last step (warm start, pressure)
-        self.data = DFSPHData.allocate(self.be, self.state.n)
+        self.allocate_scratch(DFSPHData)
 
     def prepare(self) -> None:
         """Neighbours and densities at the current positions (they stay until the next advection,

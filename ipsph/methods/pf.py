@@ -43,7 +43,7 @@ class ProjectiveMethod(Method):
     def __init__(self, *args):
         super().__init__(*args)
         self.state.zeros("pd_lambda")  # Lam: the step's accumulated multipliers (pressure, warm start)
-        self.data = self.Data.allocate(self.be, self.state.n)
+        self.allocate_scratch(self.Data)
 
     def prepare(self) -> None:
         """Densities at the current positions, so frame 0 carries them.

@@ -119,6 +119,7 @@ def render_output(out_dir, *, speed_range=None, config_overrides: dict | None = 
             radius = 0.01 * float(np.ptp(allp, axis=0).max() or 1.0)
     scene = run.get("scene") or {}
     title = " - ".join(str(x) for x in (scene.get("name"), (run.get("method") or "").upper(),  # no '|': VTK drops it
+                                        "emitters and sinks" if run.get("flow") else  # the count varies
                                         f"{run['fluid_particles']:,} particles" if run.get("fluid_particles") else None)
                        if x)
     if fps is None:

@@ -57,12 +57,11 @@ def reference_markdown() -> str:
     sections: dict[str, list[Param]] = {}
     for p in PARAMS:
         head = p.path.rsplit(".", 1)[0] if "." in p.path else ""
-        if head.startswith(("fluid", "boundary")):
+        if head.split(".", 1)[0] in ENTITIES:
             head = head.split(".", 1)[0]
         sections.setdefault(head, []).append(p)
     for head, params in sections.items():
-        title = {"": "Top level", "fluid": "[[fluid]]", "boundary": "[[boundary]]"}.get(
-            head, f"[{head}]")
+        title = {"": "Top level", **{e: f"[[{e}]]" for e in ENTITIES}}.get(head, f"[{head}]")
         out += [f"## {title}", "", SECTION_DOCS[head], "",
                 "| key | type | default | unit | allowed | description |",
                 "|---|---|---|---|---|---|"]

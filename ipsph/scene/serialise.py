@@ -30,6 +30,21 @@ def scene_to_dict(scene: Scene) -> dict:
         d["fluid"] = [_entity_to_dict("fluid", f) for f in scene.fluids]
     if scene.boundaries:
         d["boundary"] = [_entity_to_dict("boundary", b) for b in scene.boundaries]
+    if scene.emitters:
+        d["emitter"] = [_flow_to_dict("emitter", e) for e in scene.emitters]
+    if scene.sinks:
+        d["sink"] = [_flow_to_dict("sink", e) for e in scene.sinks]
+    return d
+
+
+def _flow_to_dict(kind: str, e) -> dict:
+    """An [[emitter]] or [[sink]] table: each key's value by its declared target (None left out)."""
+    d: dict = {}
+    for p in PARAMS:
+        if p.path.startswith(kind + "."):
+            value = getattr(e, p.target)
+            if value is not None:
+                d[p.key] = _plain(value)
     return d
 
 

@@ -17,13 +17,13 @@ from pathlib import Path
 from typing import Any, Iterable
 
 from ..errors import ConfigError, read_text
-from ..model import (BoundarySpec, FluidSpec, Method, OutputConfig, RenderConfig, Role, Scene,
+from ..model import (BoundarySpec, DomainConfig, FluidSpec, Method, OutputConfig, RenderConfig, Role, Scene,
                      SolverConfig, SurfaceConfig, TimeStepConfig, Transform)
 from ..params import AUTO, PARAM_BY_PATH, PARAMS, RENAMED, Param, default, spacing
 from .text import _allowed, _fmt, _fmt_vec, _show, _tname
 
-ENTITIES = ("fluid", "boundary")
-ENTITY_TABLE = {"fluid": "[[fluid]]", "boundary": "[[boundary]]"}
+ENTITIES = ("fluid", "boundary", "emitter", "sink")
+ENTITY_TABLE = {e: f"[[{e}]]" for e in ENTITIES}
 _Z3 = (0.0, 0.0, 0.0)
 
 
@@ -133,13 +133,13 @@ def _build_scene(data: dict, base_dir: Path, name: str | None, source: Path | No
         kw["output"]["folder"] = Path(kw["output"]["folder"]).expanduser()
     sections = {k: _construct(t, kw.pop(k, {})) for k, t in
                 (("time_step", TimeStepConfig), ("solver", SolverConfig), ("output", OutputConfig),
-                 ("render", RenderConfig), ("surface", SurfaceConfig))}
+                 ("render", RenderConfig), ("surface", SurfaceConfig), ("domain", DomainConfig))}
     r = kw.get("particle_radius", default("simulation.particle_radius"))
 
     fluids_raw = _entity_list(ctx, data, "fluid")
-    if not fluids_raw:
+    if not fluids_raw and not _entity_list(ctx, data, "emitter"):
         raise ConfigError(f"{where}: no [[fluid]] table: a scene needs at least one fluid body "
-                          f"(a box or a mesh)")
+                          f"(a box or a mesh) or an [[emitter]]")
     fluids = tuple(_entity(ctx, "fluid", i, e, base_dir, r) for i, e in enumerate(fluids_raw))
     try:
         _check_sections(ctx, sections["time_step"], sections["solver"], sections["render"], r)
@@ -158,7 +158,16 @@ def _build_scene(data: dict, base_dir: Path, name: str | None, source: Path | No
                 raise ctx.fail(f"{kind}[{i}].name", f"{item.name!r} is already the name of "
                                f"{kind}[{seen[item.name]}]; names must be unique")
             seen[item.name] = i
-    return Scene(fluids=fluids, boundaries=boundaries, **sections, **kw)
+    from . import flow
+    end_time = kw.get("end_time", default("simulation.end_time"))
+    emitters = tuple(flow.emitter_entity(ctx, _walk, _ENTITY_TREES["emitter"], i, e, r, end_time)
+                     for i, e in enumerate(_entity_list(ctx, data, "emitter")))
+    sinks = tuple(flow.sink_entity(ctx, _walk, _ENTITY_TREES["sink"], i, e)
+                  for i, e in enumerate(_entity_list(ctx, data, "sink")))
+    flow.unique_names(ctx, "emitter", emitters)
+    flow.unique_names(ctx, "sink", sinks)
+    flow.check_domain(ctx, sections["domain"])
+    return Scene(fluids=fluids, boundaries=boundaries, emitters=emitters, sinks=sinks, **sections, **kw)
 
 
 def _walk(ctx: _Ctx, data: Any, tree: dict, prefix: str, out: dict) -> None:
@@ -184,7 +193,7 @@ def _unknown(ctx: _Ctx, key: str, prefix: str, allowed: list[str]) -> ConfigErro
     else:
         # the right key in the wrong table: [simulation] cfl_factor -> time_step.cfl_factor
         elsewhere = [p.path for p in PARAMS if p.key == key and p.path != "source"]
-        elsewhere = [re.sub(r"^(fluid|boundary)\.", r"\1[i].", e) for e in elsewhere]
+        elsewhere = [re.sub(rf"^({'|'.join(ENTITIES)})\.", r"\1[i].", e) for e in elsewhere]
         hint = ("; did you mean " + " or ".join(repr(e) for e in elsewhere) + "?"
                 if elsewhere else "")
     where_ = f"[{prefix}]" if prefix else "the top level"

@@ -121,9 +121,8 @@ class _Importer:
     def run(self) -> tuple[dict, tuple[str, ...]]:
         out: dict = {"simulation": {}, "time_step": {}, "solver": {}, "output": {}}
         for key in self.raw:
-            if key in ("Emitters", "AnimationFields") and self.raw[key]:
-                raise self.fail(key, "not supported by ipsph (fluid is only created at t = 0); "
-                                "remove it to import the rest of the scene")
+            if key == "AnimationFields" and self.raw[key]:
+                raise self.fail(key, "not supported by ipsph; remove it to import the rest of the scene")
             if key not in ("Configuration", "Materials", "RigidBodies", "FluidBlocks",
                            "FluidModels", "Emitters", "AnimationFields"):
                 self.ignore("", key)
@@ -136,8 +135,18 @@ class _Importer:
                          for i, b in enumerate(self.list_of_objects("FluidBlocks"))]
                         + [self.fluid_model(i, m)
                            for i, m in enumerate(self.list_of_objects("FluidModels"))])
-        if not out["fluid"]:
-            raise ConfigError(f"{self.where}: no FluidBlocks or FluidModels: nothing to "
+        from . import emitters
+        r = out["simulation"]["particle_radius"]
+        out["emitter"] = [emitters.emitter(self, i, e, r) for i, e in enumerate(self.list_of_objects("Emitters"))]
+        mats = [(f"Materials[{i}]", m) for i, m in enumerate(self.list_of_objects("Materials"))]
+        box = emitters.domain(self, [("Configuration", config)] + mats)
+        if box is not None:
+            out["domain"] = box
+        for key in ("fluid", "emitter"):
+            if not out[key]:
+                del out[key]
+        if "fluid" not in out and "emitter" not in out:
+            raise ConfigError(f"{self.where}: no FluidBlocks, FluidModels or Emitters: nothing to "
                               f"simulate")
         out["boundary"] = [self.rigid_body(i, b)
                            for i, b in enumerate(self.list_of_objects("RigidBodies"))]
@@ -153,6 +162,7 @@ class _Importer:
                    "timeStepSize", "cflFactor", "cflMaxTimeStepSize", "cflMinTimeStepSize",
                    "cflMethod", "cameraPosition", "cameraLookat", "dataExportFPS", "DFSPH",
                    "Projective Fluids", "sim2D",
+                   "maxEmitterParticles", "emitterReuseParticles", "emitterBoxMin", "emitterBoxMax",
                    # 2.0.0 flat layout (handled here or in materials())
                    "density0", "viscosity", "viscosityMethod", "minIterations",
                    "maxIterations", "maxError", "maxIterationsV", "maxErrorV",
@@ -303,6 +313,9 @@ class _Importer:
             visc = self.num(mat["viscosity"], f"{label}.viscosity")
         for key, value in mat.items():
             if key in ("id", "density0", "viscosity", "viscosityMethod") or inline:
+                continue
+            from .emitters import MATERIAL_KEYS
+            if key in MATERIAL_KEYS:  # the emitter box: [domain] (emitters.domain)
                 continue
             if isinstance(value, dict) and "viscosity" in value and "viscosity" in key.lower():
                 visc = self.num(value["viscosity"], f"{label}.{key}.viscosity")
