@@ -27,7 +27,7 @@ from .errors import EXIT_INTERRUPTED, EXIT_OK, IpsphError, NumericalFailure, Out
 from .io import provenance
 from .io.folder import RunFolder, check_output_folder, prepare_output_folder
 from .model import Scene
-from .preflight import check_geometry, check_render_size, check_size
+from .preflight import check_backend, check_geometry, check_render_size, check_size
 from .simulation import Simulation, sample_scene
 
 
@@ -125,6 +125,7 @@ def run(scene: Scene, opts: RunOptions) -> int:
 
 def _checked_run(scene: Scene, opts: RunOptions, clock: RunClock) -> int:
     out = opts.out_dir
+    check_backend(scene)
     check_output_folder(out, opts.overwrite, opts.resume)
     resume = _load_resume(out, scene) if opts.resume else None
     if resume is None:
@@ -148,7 +149,8 @@ def _checked_run(scene: Scene, opts: RunOptions, clock: RunClock) -> int:
         from .surface_worker import BackgroundSurfacer
         surfacer = BackgroundSurfacer()
     from . import jit_warm
-    clock.helper = jit_warm.start(scene.method.value)  # cold Numba cache: compile on the other core too
+    if scene.backend == "cpu":  # cold Numba cache: compile on the other core too
+        clock.helper = jit_warm.start(scene.method.value)
     try:
         return _run(scene, opts, resume, renderer, clock, surfacer)
     except BaseException:
@@ -189,7 +191,8 @@ def _run(scene: Scene, opts: RunOptions, resume, renderer, clock: RunClock, surf
     lo = np.minimum(fluid_x.min(axis=0), boundary_x.min(axis=0)) if len(boundary_x) else fluid_x.min(axis=0)
     hi = np.maximum(fluid_x.max(axis=0), boundary_x.max(axis=0)) if len(boundary_x) else fluid_x.max(axis=0)
     info = {"scene": scene_to_dict(scene), "scene_file": str(scene.source) if scene.source else None,
-            "method": scene.method.value, "status": "running", "completed": False, "exit_code": None,
+            "method": scene.method.value, "backend": scene.backend, "precision": scene.precision,
+            "status": "running", "completed": False, "exit_code": None,
             "particle_radius": scene.particle_radius, "fluid_particles": sim.n_fluid,
             "boundary_particles": sim.n_boundary, "wall_fit": sim.boundary.fit_report,
             "domain_bounds": [float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1]), float(lo[2]), float(hi[2])],

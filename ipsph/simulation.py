@@ -83,9 +83,10 @@ class Simulation:
     """One fluid simulation: particle state, static walls, a method and the clock."""
 
     def __init__(self, scene: Scene, fluid_x: np.ndarray, fluid_v: np.ndarray, boundary_x: np.ndarray,
-                 fluid_ids: np.ndarray | None = None, backend: str | Backend = "cpu"):
+                 fluid_ids: np.ndarray | None = None, backend: str | Backend | None = None):
         self.scene = scene
-        self.be = get_backend(backend) if isinstance(backend, str) else backend
+        backend = scene.backend if backend is None else backend  # simulation.backend, .precision, .device
+        self.be = get_backend(backend, scene.precision, scene.device) if isinstance(backend, str) else backend
         r = scene.particle_radius
         self.spacing = spacing(r)
         self.support = support(r)

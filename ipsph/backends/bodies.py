@@ -16,7 +16,8 @@ Why two stages per particle: the second loop has no indirection, so LLVM turns i
 code (the kernel's sqrt, division and polynomial on 4 neighbours at once), faster than one
 scalar loop that does both (measured: docs/performance.md, "Measured design choices").
 """
-import numpy as np
+import math
+
 from numba import njit
 
 from ..kernels import grad_w_factor, w
@@ -72,7 +73,7 @@ def _weighted_gradient(n, buf, row, h):
     a0 = a1 = a2 = 0.0
     for k in range(n):
         d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
-        f = buf[row, k] * grad_w_factor(np.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
+        f = buf[row, k] * grad_w_factor(math.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
         a0 += f * d0
         a1 += f * d1
         a2 += f * d2
@@ -91,7 +92,7 @@ def _density_sums(n, buf, h, rho_self, keep_f):
     for k in range(n):
         d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
         r2 = d0 * d0 + d1 * d1 + d2 * d2
-        r = np.sqrt(r2)
+        r = math.sqrt(r2)
         mk = buf[C0, k]
         fluid = buf[C1, k]
         rho_w += mk * w(r, h)
@@ -121,7 +122,7 @@ def _viscosity_sums(i, n_f, buf, h, eps, mf, standard, fill, pair_grad):
     for k in range(n_f):
         d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
         r2 = d0 * d0 + d1 * d1 + d2 * d2
-        r = np.sqrt(r2)
+        r = math.sqrt(r2)
         u0, u1, u2 = buf[C1, k], buf[C2, k], buf[C3, k]
         inv_rho = buf[C4, k]
         wij = inv_rho * w(r, h)
@@ -210,7 +211,7 @@ def density_rate_at(i, x, v, mf, gb, nf, cf, pair_grad, cached, h, buf):
     _gather_xf(i, x, nf, cf, buf)
     for k in range(n_f):
         d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
-        f = grad_w_factor(np.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
+        f = grad_w_factor(math.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
         rate += f * (buf[C1, k] * d0 + buf[C2, k] * d1 + buf[C3, k] * d2)
     return mf * rate + walls
 
