@@ -163,6 +163,7 @@ class Simulation:
         clamped = self._clamped  # this step's CFL value fell below dt_min
         self.clamped_steps += clamped
         self.dt_next, self._clamped = self._cfl(vmax)
+        self.be.synchronize()
         rep.timings["step"] = time.perf_counter() - t0
         return StepStats(**vars(rep), step=self.steps, time=self.time, max_speed=vmax, kinetic_energy=ke,
                          dt_clamped=clamped)

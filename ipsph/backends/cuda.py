@@ -186,6 +186,9 @@ class CUDABackend(Backend):
         from .cuda_neighbours import CUDANeighbourSearch
         return CUDANeighbourSearch(support, boundary, self)
 
+    def synchronize(self):
+        _cuda.cuda.synchronize()
+
     # -- memory -------------------------------------------------------------------------------------
     def memory(self) -> tuple[int, int] | None:
         """(free, total) bytes of the device, None on the simulator."""
