@@ -133,9 +133,10 @@ def _checked_run(scene: Scene, opts: RunOptions, clock: RunClock) -> int:
         check_geometry(scene)
         from . import estimate
         threads = opts.threads or int(os.environ.get("NUMBA_NUM_THREADS", 0)) or len(os.sched_getaffinity(0))
-        estimate.announce(scene, n_fluid, threads, yes=opts.yes,
-                          interactive=sys.stdin.isatty() and sys.stderr.isatty(),
-                          log=lambda line: print(line, file=sys.stderr))
+        if scene.backend == "cpu":  # the cost model is the CPU backend's (a GPU's is not measured yet)
+            estimate.announce(scene, n_fluid, threads, yes=opts.yes,
+                              interactive=sys.stdin.isatty() and sys.stderr.isatty(),
+                              log=lambda line: print(line, file=sys.stderr))
     renderer = None
     if opts.render and scene.render.enabled:
         check_render_size(scene)
