@@ -1,6 +1,6 @@
 """The CUDA backend's checks, run on numba-cuda's simulator in a process of their own
 (`python tests/cuda_sim_cases.py CASE` prints one JSON object; tests/test_cuda_backend.py
-asserts on it). NUMBA_ENABLE_CUDASIM must be set before numba-cuda is first imported, so these
+asserts on it; with IPSPH_CASES_ON_DEVICE=1 they run on a real GPU: scripts/gpu_bench.sh). NUMBA_ENABLE_CUDASIM must be set before numba-cuda is first imported, so these
 cannot share the CPU tests' process.
 
 The scenes are tiny (the simulator interprets every GPU thread in Python).
@@ -11,7 +11,7 @@ import json
 import os
 import sys
 
-if sys.argv[1:2] != ["ptx"]:
+if sys.argv[1:2] != ["ptx"] and not os.environ.get("IPSPH_CASES_ON_DEVICE"):  # scripts/gpu_bench.sh: a real GPU
     os.environ["NUMBA_ENABLE_CUDASIM"] = "1"
 
 import numpy as np  # noqa: E402
@@ -221,6 +221,7 @@ def case_record() -> dict:
             fx, fv, bx, _ = sample_scene(scene)
             sim = Simulation(scene, fx, fv, bx, backend=get_backend("cuda", precision))
             sim.step()
+            sim.step()  # the warm starts (they need the previous step)
     return {"launches": [json.loads(k) for k in seen]}
 
 

@@ -13,8 +13,8 @@ particles grid-stride (`for i in range(start, n, stride)`), so a launch covers a
 capped grid and each thread allocates its block once.
 
 Also here: the element-wise updates, the permutations and the reductions. Reductions run in a
-fixed order: REDUCE_THREADS partial results, each a strided serial sum, then one thread sums the
-partials in index order, so a run gives the same bits on every launch and every GPU model.
+fixed order: REDUCE_THREADS partial results, each a strided serial sum, then folds of FOLD partials
+in index order (`Reducer`), so a run gives the same bits on every launch and every GPU model.
 """
 from __future__ import annotations
 
@@ -298,36 +298,62 @@ def _partial_bounds(x, part):
 
 
 @cuda.jit
-def _finish(part, op, out):
-    """One thread: out[r] = the sum (op 0), max (op 1) or min (op 2) of part[r, :], in index order."""
-    if cuda.grid(1) == 0:
-        for r in range(part.shape[0]):
-            acc = part[r, 0]
-            for t in range(1, part.shape[1]):
-                p = part[r, t]
-                if op == 0:
-                    acc += p
-                elif op == 1:
-                    acc = max(acc, p)
-                else:
-                    acc = min(acc, p)
-            out[r] = acc
+def _fold(src, op, chunk, dst):
+    """dst[r, t] = the sum (op 0), max (op 1) or min (op 2) of src[r, t chunk:(t + 1) chunk], in
+    index order: one thread per (r, t)."""
+    width = dst.shape[1]
+    for k in range(cuda.grid(1), dst.shape[0] * width, cuda.gridsize(1)):
+        r = k // width
+        t = k % width
+        lo = t * chunk
+        hi = min(lo + chunk, src.shape[1])
+        acc = src[r, lo]
+        for j in range(lo + 1, hi):
+            p = src[r, j]
+            if op == 0:
+                acc += p
+            elif op == 1:
+                acc = max(acc, p)
+            else:
+                acc = min(acc, p)
+        dst[r, t] = acc
+
+
+FOLD = 128  # partials per thread of each fold: REDUCE_THREADS -> 64 -> 1 on a GPU
 
 
 class Reducer:
-    """Device scratch for the reductions, allocated once (REDUCE_THREADS partials per row)."""
+    """Device scratch for the reductions, allocated once (REDUCE_THREADS partials per row).
+
+    A reduction: REDUCE_THREADS threads each reduce a strided share (stage 1), then `_fold`
+    reduces runs of FOLD partials until one is left (64 threads, then one), every step in index
+    order: the same bits on every launch and every GPU, and no single thread walks all the partials."""
 
     def __init__(self):
         self.part = cuda.device_array((7, REDUCE_THREADS), dtype=np.float64)
-        self.out = cuda.device_array(7, dtype=np.float64)
+        self.levels = []
+        width = REDUCE_THREADS
+        while width > 1:
+            width = math.ceil(width / FOLD)
+            self.levels.append(cuda.device_array((7, width), dtype=np.float64))
+        if not self.levels:
+            self.levels.append(cuda.device_array((7, 1), dtype=np.float64))
 
     def _stage1(self, kernel, *args):
         blocks = math.ceil(REDUCE_THREADS / THREADS) if not SIMULATOR else 1
         run(kernel, blocks, min(THREADS, REDUCE_THREADS), *args)
 
+    def _fold(self, lo: int, hi: int, op: int) -> np.ndarray:
+        """Rows lo:hi of the partials reduced with op, on the host."""
+        src = self.part
+        for dst in self.levels:
+            chunk = math.ceil(src.shape[1] / dst.shape[1])
+            launch(_fold, (hi - lo) * dst.shape[1], src[lo:hi], op, chunk, dst[lo:hi])
+            src = dst
+        return self.levels[-1][lo:hi, 0].copy_to_host()
+
     def _rows(self, rows: int, op: int) -> np.ndarray:
-        run(_finish, 1, 1, self.part[:rows], op, self.out)
-        return self.out.copy_to_host()[:rows]
+        return self._fold(0, rows, op)
 
     def sum(self, a, positive=False) -> float:
         self._stage1(_partial_sums, a, positive, self.part[0])
@@ -339,10 +365,8 @@ class Reducer:
 
     def speed_energy(self, v, m) -> tuple[float, float]:
         self._stage1(_partial_speed_energy, v, m, self.part[:2])
-        run(_finish, 1, 1, self.part[:1], 1, self.out)
-        vmax2 = float(self.out.copy_to_host()[0])
-        run(_finish, 1, 1, self.part[1:2], 0, self.out)
-        ke = float(self.out.copy_to_host()[0])
+        vmax2 = float(self._fold(0, 1, 1)[0])
+        ke = float(self._fold(1, 2, 0)[0])
         return math.sqrt(vmax2), ke
 
     def first_unhealthy(self, x, v, lo, hi) -> int:
@@ -354,10 +378,8 @@ class Reducer:
     def bounds(self, x) -> tuple[np.ndarray, np.ndarray]:
         """(lo, hi) of the points, NaN in both if any coordinate is not finite (cpu_neighbours.bounds)."""
         self._stage1(_partial_bounds, x, self.part)
-        run(_finish, 1, 1, self.part[:3], 2, self.out)
-        lo = self.out.copy_to_host()[:3]
-        run(_finish, 1, 1, self.part[3:7], 1, self.out)
-        hi_bad = self.out.copy_to_host()[:4]
+        lo = self._fold(0, 3, 2)
+        hi_bad = self._fold(3, 7, 1)
         hi = hi_bad[:3]
         if hi_bad[3] > 0:
             lo[:] = np.nan

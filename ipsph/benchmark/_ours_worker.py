@@ -100,7 +100,7 @@ def device_nbytes(sim) -> int:
         arrays += list(d.values())
     for walls in be._walls.values():
         arrays += list(walls[2:])
-    arrays += [be.reducer.part, be.reducer.out]
+    arrays += [be.reducer.part, *be.reducer.levels]
     unique = {id(a): a for a in arrays if a is not None}
     return sum(int(a.nbytes) for a in unique.values()) + sim.method.nbytes
 
