@@ -20,6 +20,8 @@ import os
 import types
 
 SIMULATOR = os.environ.get("NUMBA_ENABLE_CUDASIM", "0") not in ("", "0")
+# small scenes launch small grids on purpose: no warning per launch (the user's setting wins)
+os.environ.setdefault("NUMBA_CUDA_LOW_OCCUPANCY_WARNINGS", "0")
 INSTALLED = importlib.util.find_spec("numba_cuda") is not None
 
 if INSTALLED:
