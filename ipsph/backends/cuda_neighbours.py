@@ -46,7 +46,7 @@ _cell_of = device_function(cpu_neighbours._cell_of)
 _reverse = device_function(_reverse_row)
 
 
-@cuda.jit
+@cuda.jit(cache=True)
 def _cell_ids(x, origin, inv_cell, dims, out):
     nx, ny = dims[0], dims[1]
     for i in range(cuda.grid(1), x.shape[0], cuda.gridsize(1)):
@@ -54,19 +54,19 @@ def _cell_ids(x, origin, inv_cell, dims, out):
         out[i] = (cz * ny + cy) * nx + cx
 
 
-@cuda.jit
+@cuda.jit(cache=True)
 def _zero(a):
     for i in range(cuda.grid(1), a.shape[0], cuda.gridsize(1)):
         a[i] = 0
 
 
-@cuda.jit
+@cuda.jit(cache=True)
 def _count(cells, counts):
     for i in range(cuda.grid(1), cells.shape[0], cuda.gridsize(1)):
         cuda.atomic.add(counts, cells[i], 1)
 
 
-@cuda.jit
+@cuda.jit(cache=True)
 def _chunk_sums(a, chunk, sums):
     for t in range(cuda.grid(1), sums.shape[0], cuda.gridsize(1)):
         s = 0
@@ -75,7 +75,7 @@ def _chunk_sums(a, chunk, sums):
         sums[t] = s
 
 
-@cuda.jit
+@cuda.jit(cache=True)
 def _chunk_scan(a, chunk, offsets, out):
     """out[i] = offsets[t] + sum of a over chunk t before i; out[n] = the total."""
     n = a.shape[0]
@@ -103,14 +103,14 @@ def exclusive_scan(a, out) -> None:
     launch(_chunk_scan, m, a, SCAN_CHUNK, offsets, out)
 
 
-@cuda.jit
+@cuda.jit(cache=True)
 def _scatter(cells, start, cursor, tmp):
     for i in range(cuda.grid(1), cells.shape[0], cuda.gridsize(1)):
         c = cells[i]
         tmp[start[c] + cuda.atomic.add(cursor, c, 1)] = i
 
 
-@cuda.jit
+@cuda.jit(cache=True)
 def _place(cells, start, tmp, perm):
     """perm[start[c] + rank] = i, rank = how many of cell c's particles have a lower index: the
     stable order of the counting sort, whatever order the atomics scattered them in."""
@@ -122,7 +122,7 @@ def _place(cells, start, tmp, perm):
         perm[start[c] + rank] = i
 
 
-@cuda.jit
+@cuda.jit(cache=True)
 def _gather_fluid(xs, cell_start, origin, inv_cell, dims, radius, idx, cnt):
     """cpu_neighbours.gather_neighbours(xs, xs, ..., same_set=True) then append_lower, in one
     walk: the row [j > i ascending | j < i ascending] and its length (rows longer than the
@@ -170,7 +170,7 @@ def _gather_fluid(xs, cell_start, origin, inv_cell, dims, radius, idx, cnt):
             _reverse(idx, i, 0, n)
 
 
-@cuda.jit
+@cuda.jit(cache=True)
 def _gather_walls(xq, xs, start, cand, origin, inv_cell, dims, radius, idx, cnt):
     """cpu_neighbours.gather_walls: each particle tests its own cell's wall candidates."""
     nx, ny = dims[0], dims[1]

@@ -8,7 +8,9 @@ per-particle inputs, the lists, scalars, outputs last), the same tests for what 
 line here as there.
 
 The scratch block must have a size known when the kernel is compiled, so the pass kernels are
-built per list stride (`passes(kf, kb)`, cached; the stride grows rarely). Kernels loop over
+built per list stride (`passes(kf, kb)`, kept for the process; the stride grows rarely). The other
+kernels are cached on disk by numba-cuda (`cache=True`); the pass kernels, closures over the
+stride, compile in each process's first steps (which `ipsph bench` leaves out as warm-up). Kernels loop over
 particles grid-stride (`for i in range(start, n, stride)`), so a launch covers any n with a
 capped grid and each thread allocates its block once.
 
@@ -124,7 +126,7 @@ def run(kernel, blocks: int, threads: int, *args) -> None:
 
 
 # -- element-wise updates (the arithmetic of cpu_passes, in the same order) --------------------------
-@cuda.jit
+@cuda.jit(cache=True)
 def advance(x, v, dt, a, x_old):
     """x_old = x;  x += dt v + dt^2 a."""
     dt2 = dt * dt
@@ -134,7 +136,7 @@ def advance(x, v, dt, a, x_old):
             x[i, c] += dt * v[i, c] + dt2 * a[c]
 
 
-@cuda.jit
+@cuda.jit(cache=True)
 def displacement_velocity(x, x_old, dt, v):
     """v = (x - x_old) / dt."""
     for i in range(cuda.grid(1), x.shape[0], cuda.gridsize(1)):
@@ -142,7 +144,7 @@ def displacement_velocity(x, x_old, dt, v):
             v[i, c] = (x[i, c] - x_old[i, c]) / dt
 
 
-@cuda.jit
+@cuda.jit(cache=True)
 def accelerate(v, dt, a):
     """v += dt a."""
     for i in range(cuda.grid(1), v.shape[0], cuda.gridsize(1)):
@@ -150,7 +152,7 @@ def accelerate(v, dt, a):
             v[i, c] += dt * a[c]
 
 
-@cuda.jit
+@cuda.jit(cache=True)
 def warm_stiffness(k_total, scale, rate, n_nbrs, min_nbrs, warm):
     """cpu_passes.warm_stiffness: DFSPH's warm start, then k_total = 0."""
     masked = rate.shape[0] == k_total.shape[0]
@@ -161,32 +163,32 @@ def warm_stiffness(k_total, scale, rate, n_nbrs, min_nbrs, warm):
 
 
 # Flat (1D) views: the vector operations below see every array as one run of numbers.
-@cuda.jit
+@cuda.jit(cache=True)
 def fill(a, value):
     for i in range(cuda.grid(1), a.shape[0], cuda.gridsize(1)):
         a[i] = value
 
 
-@cuda.jit
+@cuda.jit(cache=True)
 def copy(dst, src):
     for i in range(cuda.grid(1), dst.shape[0], cuda.gridsize(1)):
         dst[i] = src[i]
 
 
-@cuda.jit
+@cuda.jit(cache=True)
 def axpy(y, alpha, x):
     """y += alpha x."""
     for i in range(cuda.grid(1), y.shape[0], cuda.gridsize(1)):
         y[i] += alpha * x[i]
 
 
-@cuda.jit
+@cuda.jit(cache=True)
 def scale(a, c):
     for i in range(cuda.grid(1), a.shape[0], cuda.gridsize(1)):
         a[i] *= c
 
 
-@cuda.jit
+@cuda.jit(cache=True)
 def pf_pressure(out, lam, rho0, dt):
     """out = -rho0 lam / dt^2 (the numpy expression's order: (-rho0 lam) / (dt dt))."""
     dt2 = dt * dt
@@ -194,7 +196,7 @@ def pf_pressure(out, lam, rho0, dt):
         out[i] = -rho0 * lam[i] / dt2
 
 
-@cuda.jit
+@cuda.jit(cache=True)
 def stiffness_pressure(out, k, rho, add):
     """out (+)= k rho^2 (as k * rho * rho)."""
     for i in range(cuda.grid(1), out.shape[0], cuda.gridsize(1)):
@@ -202,7 +204,7 @@ def stiffness_pressure(out, k, rho, add):
         out[i] = out[i] + p if add else p
 
 
-@cuda.jit
+@cuda.jit(cache=True)
 def take_rows(a, perm, out):
     """out[i, :] = a[perm[i], :] for (n, m) arrays."""
     for i in range(cuda.grid(1), out.shape[0], cuda.gridsize(1)):
@@ -211,7 +213,7 @@ def take_rows(a, perm, out):
             out[i, c] = a[j, c]
 
 
-@cuda.jit
+@cuda.jit(cache=True)
 def untake_rows(a, perm, out):
     """out[perm[i], :] = a[i, :] for (n, m) arrays."""
     for i in range(cuda.grid(1), a.shape[0], cuda.gridsize(1)):
@@ -221,7 +223,7 @@ def untake_rows(a, perm, out):
 
 
 # -- reductions in a fixed order ---------------------------------------------------------------------
-@cuda.jit
+@cuda.jit(cache=True)
 def _partial_sums(a, positive, part):
     """part[t] = sum over i = t, t + T, ... of a[i] (of max(a[i], 0) with `positive`)."""
     t = cuda.grid(1)
@@ -232,7 +234,7 @@ def _partial_sums(a, positive, part):
         part[t] = s
 
 
-@cuda.jit
+@cuda.jit(cache=True)
 def _partial_max(a, part):
     t = cuda.grid(1)
     if t < part.shape[0]:
@@ -242,7 +244,7 @@ def _partial_max(a, part):
         part[t] = m
 
 
-@cuda.jit
+@cuda.jit(cache=True)
 def _partial_speed_energy(v, m, part):
     """part[0, t] = max |v_i|^2, part[1, t] = sum m_i |v_i|^2 / 2 over i = t, t + T, ..."""
     t = cuda.grid(1)
@@ -257,7 +259,7 @@ def _partial_speed_energy(v, m, part):
         part[1, t] = ke
 
 
-@cuda.jit
+@cuda.jit(cache=True)
 def _partial_unhealthy(x, v, lo0, lo1, lo2, hi0, hi1, hi2, part):
     """part[t] = the smallest unhealthy index among i = t, t + T, ... (n if none)."""
     t = cuda.grid(1)
@@ -277,7 +279,7 @@ def _partial_unhealthy(x, v, lo0, lo1, lo2, hi0, hi1, hi2, part):
         part[t] = first
 
 
-@cuda.jit
+@cuda.jit(cache=True)
 def _partial_bounds(x, part):
     """part[0:3, t] = min, part[3:6, t] = max per axis over i = t, t + T, ...; part[6, t] = 1 if any
     coordinate is not finite."""
@@ -297,7 +299,7 @@ def _partial_bounds(x, part):
         part[6, t] = bad
 
 
-@cuda.jit
+@cuda.jit(cache=True)
 def _fold(src, op, chunk, dst):
     """dst[r, t] = the sum (op 0), max (op 1) or min (op 2) of src[r, t chunk:(t + 1) chunk], in
     index order: one thread per (r, t)."""
