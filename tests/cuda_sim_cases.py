@@ -1,7 +1,8 @@
 """The CUDA backend's checks, run on numba-cuda's simulator in a process of their own
 (`python tests/cuda_sim_cases.py CASE` prints one JSON object; tests/test_cuda_backend.py
-asserts on it; with IPSPH_CASES_ON_DEVICE=1 they run on a real GPU: scripts/gpu_bench.sh). NUMBA_ENABLE_CUDASIM must be set before numba-cuda is first imported, so these
-cannot share the CPU tests' process.
+asserts on it; with IPSPH_CASES_ON_DEVICE=1 they run on a real GPU: scripts/gpu_bench.sh).
+NUMBA_ENABLE_CUDASIM must be set before numba-cuda is first imported, so these cannot share the
+CPU tests' process.
 
 The scenes are tiny (the simulator interprets every GPU thread in Python).
 """

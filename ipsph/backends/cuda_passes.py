@@ -16,7 +16,7 @@ capped grid and each thread allocates its block once.
 
 Also here: the element-wise updates, the permutations and the reductions. Reductions run in a
 fixed order: REDUCE_THREADS partial results, each a strided serial sum, then folds of FOLD partials
-in index order (`Reducer`), so a run gives the same bits on every launch and every GPU model.
+in index order (`Reducer`), so a run gives the same bits on every launch, whatever the GPU's size.
 """
 from __future__ import annotations
 
@@ -329,7 +329,8 @@ class Reducer:
 
     A reduction: REDUCE_THREADS threads each reduce a strided share (stage 1), then `_fold`
     reduces runs of FOLD partials until one is left (64 threads, then one), every step in index
-    order: the same bits on every launch and every GPU, and no single thread walks all the partials."""
+    order: the same bits on every launch, whatever the GPU's size, and no single thread walks
+    all the partials."""
 
     def __init__(self):
         self.part = cuda.device_array((7, REDUCE_THREADS), dtype=np.float64)
