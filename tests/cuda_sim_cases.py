@@ -191,6 +191,21 @@ def case_passes() -> dict:
     bg.untake(back, bg.asarray(perm, dtype="int64"))
     res["take_untake"] = bool(np.array_equal(bg.to_host(taken), v[perm]) and np.array_equal(bg.to_host(back), v))
     res["diffs"] = diffs
+    # the GPU's out-of-memory error becomes one line (exit 2): the driver's error, as numba-cuda raises it
+    from numba.cuda.cudadrv.driver import CudaAPIError
+    from ipsph.backends import _cuda
+    from ipsph.errors import ConfigError
+
+    def exhausted(*a, **k):
+        raise CudaAPIError("CUresult.CUDA_ERROR_OUT_OF_MEMORY", "Call to cuMemAlloc results in CUDA_ERROR_OUT_OF_MEMORY")
+    real, _cuda.cuda.device_array = _cuda.cuda.device_array, exhausted
+    try:
+        bg.zeros(10**8, (3,))
+        res["oom"] = None
+    except ConfigError as exc:
+        res["oom"] = str(exc)
+    finally:
+        _cuda.cuda.device_array = real
     return res
 
 

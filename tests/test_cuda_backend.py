@@ -116,6 +116,7 @@ def test_every_pass_and_reduction_matches_the_cpu(results):
     bad = {k: v for k, v in diffs.items() if not v <= FLOAT64_REL}
     assert not bad, bad
     assert r["max_exact"] and r["take_untake"]
+    assert r["oom"] and "out of memory" in r["oom"] and "100,000,000 particles" in r["oom"], r["oom"]
     n_half = r["unhealthy"][1]
     assert r["unhealthy"] == [n_half, n_half, -1] and n_half > 0
 

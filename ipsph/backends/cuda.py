@@ -51,7 +51,21 @@ class CUDABackend(Backend):
         return self.real if dt == np.float64 else dt
 
     def _new(self, shape, dtype):
-        return _cuda.cuda.device_array(shape, dtype=dtype)
+        return self._allocate(lambda: _cuda.cuda.device_array(shape, dtype=dtype), shape, dtype)
+
+    def _allocate(self, make, shape, dtype):
+        """make() (a device allocation), with the GPU's out-of-memory error as one line (exit 2)."""
+        try:
+            return make()
+        except Exception as exc:
+            if "OUT_OF_MEMORY" not in str(exc).upper().replace(" ", "_"):
+                raise
+            mem = self.memory()
+            have = f" ({mem[0] / 2**30:.1f} of {mem[1] / 2**30:.1f} GiB free)" if mem else ""
+            size = int(np.prod(shape)) * np.dtype(dtype).itemsize
+            raise ConfigError(f"the GPU (device {self.device}) is out of memory allocating {size / 2**20:.0f} MiB "
+                              f"for {shape[0]:,} particles{have}: use a larger simulation.particle_radius, "
+                              f"simulation.precision = \"float32\", or a GPU with more memory") from None
 
     @staticmethod
     def _flat(a):
@@ -70,7 +84,8 @@ class CUDABackend(Backend):
         return self._new((n, *shape), self._dtype(dtype))
 
     def asarray(self, host, dtype="float64"):
-        return _cuda.cuda.to_device(np.ascontiguousarray(host, dtype=self._dtype(dtype)))
+        a = np.ascontiguousarray(host, dtype=self._dtype(dtype))
+        return self._allocate(lambda: _cuda.cuda.to_device(a), a.shape, a.dtype)
 
     def to_host(self, a):
         return a.copy_to_host()
