@@ -5,7 +5,9 @@ neighbours into a scratch block `buf` the launcher hands it, evaluates the kerne
 contiguous block, and writes index i of its outputs only. Bodies allocate nothing, read no
 globals and call only other bodies and the kernel formulas (`ipsph.kernels`), so the CPU
 launcher (`cpu_passes`: `prange` over blocks of particles) inlines them today and a CUDA
-launcher can compile the same functions as device functions (with `buf` a thread-local array).
+launcher compiles the same functions as device functions (`cuda_passes`: `buf` a thread-local
+array). Scalar maths goes through `math`, not numpy: `np.sqrt` of a scalar does not compile for
+CUDA, `math.sqrt` compiles to the same instruction on both (the CPU results were bit-identical).
 
 Notation (method.md sections 1-3): fluid neighbours j (one mass mf, a scalar), walls b with
 effective mass m_b = rho0 Psi_b; x_ij = x_i - x_j, r_ij = |x_ij|, grad W_ij = g(r_ij) x_ij.
