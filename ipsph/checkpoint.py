@@ -36,11 +36,13 @@ _EXCLUDED = ("output", "render", "name", "source")  # do not change the physics
 
 
 def scene_fingerprint_dict(scene: Scene) -> dict:
-    """The scene dict that decides the physics: output/render settings, name, source, end_time left out."""
+    """The scene dict that decides the physics: output/render settings, name, source, end_time left out,
+    and where it runs (simulation.backend, .device: a CPU run may continue on a GPU; precision stays)."""
     from .scene import scene_to_dict
     d = {k: v for k, v in scene_to_dict(scene).items() if k not in _EXCLUDED}
     sim = dict(d.get("simulation", {}))
-    sim.pop("end_time", None)
+    for key in ("end_time", "backend", "device"):
+        sim.pop(key, None)
     d["simulation"] = sim
     return d
 

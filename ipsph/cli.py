@@ -11,7 +11,7 @@ from pathlib import Path
 
 from . import __version__
 from .errors import EXIT_INTERRUPTED, IpsphError
-from .params import METHOD_NAMES, RENDER_MODES, RENDER_VIEWS
+from .params import BACKEND_NAMES, METHOD_NAMES, PRECISIONS, RENDER_MODES, RENDER_VIEWS
 
 # OpenMP threads that finish a parallel loop sleep instead of spinning (unless the user chose):
 # between the solver's ~20 parallel loops per step the other core is then free for the render
@@ -36,6 +36,9 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("-o", "--output", type=Path, help="output folder (default: the scene's output.folder)")
     r.add_argument("--method", choices=METHOD_NAMES, help="override simulation.method")
     r.add_argument("--end-time", type=float, metavar="T", help="override simulation.end_time [s]")
+    r.add_argument("--backend", choices=BACKEND_NAMES, help="override simulation.backend (cuda: an NVIDIA GPU)")
+    r.add_argument("--precision", choices=PRECISIONS, help="override simulation.precision (float32: cuda only)")
+    r.add_argument("--device", type=int, metavar="N", help="override simulation.device: the GPU to run on")
     g = r.add_mutually_exclusive_group()
     g.add_argument("--fps", type=float, metavar="F", help="frames per simulated second (default 25)")
     g.add_argument("--every-step", action="store_true", help="write a frame after every step")
@@ -104,6 +107,9 @@ def _run(args) -> int:
         overrides.append(f"simulation.method={args.method}")
     if args.end_time is not None:
         overrides.append(f"simulation.end_time={args.end_time}")
+    for key in ("backend", "precision", "device"):
+        if getattr(args, key) is not None:
+            overrides.append(f"simulation.{key}={getattr(args, key)}")
     if args.fps is not None:
         overrides.append(f"output.fps={args.fps}")
     if args.every_step:

@@ -119,6 +119,9 @@ SurfaceConfig = _section("SurfaceConfig", "surface", "[surface]: surface reconst
 class Scene:
     name: str
     method: Method = Method(D("simulation.method"))
+    backend: str = D("simulation.backend")
+    precision: str = D("simulation.precision")
+    device: int = D("simulation.device")
     particle_radius: float = D("simulation.particle_radius")
     density0: float = D("simulation.density0")
     gravity: Vec3 = D("simulation.gravity")

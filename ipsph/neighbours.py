@@ -141,9 +141,13 @@ class NeighbourSearch:
         self._sort = None  # (cells, fluid_start) scratch of `update`
 
     # -- grid ---------------------------------------------------------------------------------
+    def _bounds(self, x_fluid):
+        """(lo, hi) of the fluid, NaN if a coordinate is not finite (a device search reduces on the device)."""
+        return bounds(x_fluid)
+
     def _fit_grid(self, x_fluid: np.ndarray) -> None:
         """Make sure the grid covers fluid and boundary; resort the boundary if the grid changed."""
-        lo, hi = bounds(x_fluid) if len(x_fluid) else (np.zeros(3), np.zeros(3))
+        lo, hi = self._bounds(x_fluid) if len(x_fluid) else (np.zeros(3), np.zeros(3))
         if self.grid is not None and self.grid.contains(lo, hi):
             return
         xb = self.boundary.x

@@ -35,6 +35,8 @@ def support(r: float) -> float:
 
 
 METHOD_NAMES = ("ipsph", "pf", "dfsph")  # simulation.method; ipsph.methods.METHODS implements each
+BACKEND_NAMES = ("cpu", "cuda")           # simulation.backend; ipsph.backends.BACKENDS implements each
+PRECISIONS = ("float64", "float32")       # simulation.precision: the real arrays' type
 
 # A step's timed phases, in report order: timer name -> (short label, what it times). Each method
 # reports a subset (`Method.phases`); `Simulation.step` adds "step", the whole step.
@@ -133,6 +135,16 @@ PARAMS: tuple[Param, ...] = (
     _P("simulation.method", "choice", "ipsph", "", "Pressure solver: ipsph (the paper's "
        "method), pf (Projective Fluids) or dfsph (Divergence-Free SPH).", "method",
        choices=METHOD_NAMES),
+    _P("simulation.backend", "choice", "cpu", "", "Where the solver runs: cpu (Numba threads) or "
+       "cuda (an NVIDIA GPU through numba-cuda: pip install 'ipsph[cuda]'; docs/method.md, "
+       "\"Backends and precision\"). The same methods and outputs on both.", "backend",
+       choices=BACKEND_NAMES),
+    _P("simulation.precision", "choice", "float64", "", "Storage type of the per-particle real "
+       "arrays: float64, or float32 (cuda only: half the memory and bandwidth; the passes still "
+       "compute in float64; docs/method.md, \"Backends and precision\").", "precision",
+       choices=PRECISIONS),
+    _P("simulation.device", "int", 0, "", "With backend cuda: the number of the GPU to run on.",
+       "device", lo=0, hi=1023),
     _P("simulation.particle_radius", "float", 0.025, "m", "Particle radius r; lattice spacing "
        "d = 2r, kernel support H = 4r.", "particle_radius", lo=0.0, hi=1.0, lo_open=True),
     _P("simulation.density0", "float", 1000.0, "kg/m^3", "Rest density rho0.", "density0",

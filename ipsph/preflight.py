@@ -108,3 +108,16 @@ def _extent_hint(spec) -> str:
     if ext.max() > 100:
         hint += " (a mesh 1000x too large is probably in millimetres: scale it by 0.001)"
     return hint
+
+
+def check_backend(scene: Scene) -> None:
+    """simulation.backend can run here (for cuda: numba-cuda, a driver, the device), and the
+    precision is one it has; ConfigError naming what is missing, before anything is allocated."""
+    if scene.precision != "float64" and scene.backend == "cpu":
+        raise ConfigError(f"simulation.precision = \"{scene.precision}\" needs simulation.backend = \"cuda\" "
+                          f"(the CPU backend runs in float64)")
+    if scene.backend == "cuda":
+        from .backends._cuda import unavailable
+        why = unavailable(scene.device)
+        if why is not None:
+            raise ConfigError(f"simulation.backend = \"cuda\": {why}")

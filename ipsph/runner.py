@@ -27,7 +27,7 @@ from .errors import EXIT_INTERRUPTED, EXIT_OK, IpsphError, NumericalFailure, Out
 from .io import provenance
 from .io.folder import RunFolder, check_output_folder, prepare_output_folder
 from .model import Scene
-from .preflight import check_geometry, check_render_size, check_size
+from .preflight import check_backend, check_geometry, check_render_size, check_size
 from .simulation import Simulation, sample_scene
 
 
@@ -125,6 +125,7 @@ def run(scene: Scene, opts: RunOptions) -> int:
 
 def _checked_run(scene: Scene, opts: RunOptions, clock: RunClock) -> int:
     out = opts.out_dir
+    check_backend(scene)
     check_output_folder(out, opts.overwrite, opts.resume)
     resume = _load_resume(out, scene) if opts.resume else None
     if resume is not None and scene.emitters:  # a later --end-time emits more: check the plan again
@@ -137,9 +138,10 @@ def _checked_run(scene: Scene, opts: RunOptions, clock: RunClock) -> int:
         check_geometry(scene)
         from . import estimate
         threads = opts.threads or int(os.environ.get("NUMBA_NUM_THREADS", 0)) or len(os.sched_getaffinity(0))
-        estimate.announce(scene, n_fluid, threads, yes=opts.yes,
-                          interactive=sys.stdin.isatty() and sys.stderr.isatty(),
-                          log=lambda line: print(line, file=sys.stderr))
+        if scene.backend == "cpu":  # the cost model is the CPU backend's (a GPU's is not measured yet)
+            estimate.announce(scene, n_fluid, threads, yes=opts.yes,
+                              interactive=sys.stdin.isatty() and sys.stderr.isatty(),
+                              log=lambda line: print(line, file=sys.stderr))
     renderer = None
     if opts.render and scene.render.enabled:
         check_render_size(scene)
@@ -153,7 +155,8 @@ def _checked_run(scene: Scene, opts: RunOptions, clock: RunClock) -> int:
         from .surface_worker import BackgroundSurfacer
         surfacer = BackgroundSurfacer()
     from . import jit_warm
-    clock.helper = jit_warm.start(scene.method.value)  # cold Numba cache: compile on the other core too
+    if scene.backend == "cpu":  # cold Numba cache: compile on the other core too
+        clock.helper = jit_warm.start(scene.method.value)
     try:
         return _run(scene, opts, resume, renderer, clock, surfacer)
     except BaseException:
@@ -195,7 +198,8 @@ def _run(scene: Scene, opts: RunOptions, resume, renderer, clock: RunClock, surf
     pts = np.concatenate([fluid_x, boundary_x, extent_points(scene)])
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     info = {"scene": scene_to_dict(scene), "scene_file": str(scene.source) if scene.source else None,
-            "method": scene.method.value, "status": "running", "completed": False, "exit_code": None,
+            "method": scene.method.value, "backend": scene.backend, "precision": scene.precision,
+            "status": "running", "completed": False, "exit_code": None,
             "particle_radius": scene.particle_radius, "fluid_particles": sim.n_fluid,
             "boundary_particles": sim.n_boundary, "wall_fit": sim.boundary.fit_report,
             "domain_bounds": [float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1]), float(lo[2]), float(hi[2])],

@@ -88,9 +88,11 @@ class Simulation:
     """One fluid simulation: particle state, static walls, a method and the clock."""
 
     def __init__(self, scene: Scene, fluid_x: np.ndarray, fluid_v: np.ndarray, boundary_x: np.ndarray,
-                 fluid_ids: np.ndarray | None = None, backend: str | Backend = "cpu", capacity: int | None = None):
+                 fluid_ids: np.ndarray | None = None, backend: str | Backend | None = None,
+                 capacity: int | None = None):
         self.scene = scene
-        self.be = get_backend(backend) if isinstance(backend, str) else backend
+        backend = scene.backend if backend is None else backend  # simulation.backend, .precision, .device
+        self.be = get_backend(backend, scene.precision, scene.device) if isinstance(backend, str) else backend
         r = scene.particle_radius
         self.spacing = spacing(r)
         self.support = support(r)
@@ -180,6 +182,7 @@ class Simulation:
         clamped = self._clamped  # this step's CFL value fell below dt_min
         self.clamped_steps += clamped
         self.dt_next, self._clamped = self._cfl(vmax)
+        self.be.synchronize()
         rep.timings["step"] = time.perf_counter() - t0
         return StepStats(**vars(rep), step=self.steps, time=self.time, max_speed=vmax, kinetic_energy=ke,
                          dt_clamped=clamped, emitted=emitted, removed=removed)

@@ -10,16 +10,22 @@ from __future__ import annotations
 
 import importlib
 
+from ..params import BACKEND_NAMES
 from .base import Backend, Densities
 
-BACKENDS = {"cpu": "ipsph.backends.cpu:CPUBackend"}
+BACKENDS = {"cpu": "ipsph.backends.cpu:CPUBackend", "cuda": "ipsph.backends.cuda:CUDABackend"}
 
 
-def get_backend(name: str = "cpu") -> Backend:
+assert tuple(BACKENDS) == BACKEND_NAMES, "params.BACKEND_NAMES and BACKENDS must list the same backends"
+
+
+def get_backend(name: str = "cpu", precision: str = "float64", device: int = 0) -> Backend:
+    """The backend `name` with real arrays of `precision`, on `device` (CUDA: the GPU's number).
+    ConfigError (exit 2) when it cannot run here: the message names what is missing."""
     if name not in BACKENDS:
         raise ValueError(f"unknown backend {name!r}: use one of {', '.join(BACKENDS)}")
     module, cls = BACKENDS[name].split(":")
-    return getattr(importlib.import_module(module), cls)()
+    return getattr(importlib.import_module(module), cls)(precision=precision, device=device)
 
 
 __all__ = ["BACKENDS", "Backend", "Densities", "get_backend"]

@@ -88,3 +88,8 @@ class Backend:
 
     # -- neighbour search ---------------------------------------------------------------------------
     def neighbour_search(self, support: float, boundary): raise NotImplementedError
+
+    # -- timing -------------------------------------------------------------------------------------
+    def synchronize(self) -> None:
+        """Wait for the work launched so far (a timer reads the clock after it): asynchronous
+        backends (CUDA) override it; on the CPU every pass has returned when it ends."""

@@ -5,7 +5,9 @@ neighbours into a scratch block `buf` the launcher hands it, evaluates the kerne
 contiguous block, and writes index i of its outputs only. Bodies allocate nothing, read no
 globals and call only other bodies and the kernel formulas (`ipsph.kernels`), so the CPU
 launcher (`cpu_passes`: `prange` over blocks of particles) inlines them today and a CUDA
-launcher can compile the same functions as device functions (with `buf` a thread-local array).
+launcher compiles the same functions as device functions (`cuda_passes`: `buf` a thread-local
+array). Scalar maths goes through `math`, not numpy: `np.sqrt` of a scalar does not compile for
+CUDA, `math.sqrt` compiles to the same instruction on both (the CPU results were bit-identical).
 
 Notation (method.md sections 1-3): fluid neighbours j (one mass mf, a scalar), walls b with
 effective mass m_b = rho0 Psi_b; x_ij = x_i - x_j, r_ij = |x_ij|, grad W_ij = g(r_ij) x_ij.
@@ -16,7 +18,8 @@ Why two stages per particle: the second loop has no indirection, so LLVM turns i
 code (the kernel's sqrt, division and polynomial on 4 neighbours at once), faster than one
 scalar loop that does both (measured: docs/performance.md, "Measured design choices").
 """
-import numpy as np
+import math
+
 from numba import njit
 
 from ..kernels import grad_w_factor, w
@@ -72,7 +75,7 @@ def _weighted_gradient(n, buf, row, h):
     a0 = a1 = a2 = 0.0
     for k in range(n):
         d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
-        f = buf[row, k] * grad_w_factor(np.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
+        f = buf[row, k] * grad_w_factor(math.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
         a0 += f * d0
         a1 += f * d1
         a2 += f * d2
@@ -91,7 +94,7 @@ def _density_sums(n, buf, h, rho_self, keep_f):
     for k in range(n):
         d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
         r2 = d0 * d0 + d1 * d1 + d2 * d2
-        r = np.sqrt(r2)
+        r = math.sqrt(r2)
         mk = buf[C0, k]
         fluid = buf[C1, k]
         rho_w += mk * w(r, h)
@@ -121,7 +124,7 @@ def _viscosity_sums(i, n_f, buf, h, eps, mf, standard, fill, pair_grad):
     for k in range(n_f):
         d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
         r2 = d0 * d0 + d1 * d1 + d2 * d2
-        r = np.sqrt(r2)
+        r = math.sqrt(r2)
         u0, u1, u2 = buf[C1, k], buf[C2, k], buf[C3, k]
         inv_rho = buf[C4, k]
         wij = inv_rho * w(r, h)
@@ -210,7 +213,7 @@ def density_rate_at(i, x, v, mf, gb, nf, cf, pair_grad, cached, h, buf):
     _gather_xf(i, x, nf, cf, buf)
     for k in range(n_f):
         d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
-        f = grad_w_factor(np.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
+        f = grad_w_factor(math.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
         rate += f * (buf[C1, k] * d0 + buf[C2, k] * d1 + buf[C3, k] * d2)
     return mf * rate + walls
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import cpu_passes as P
+from ..errors import ConfigError
 from .base import Backend, Densities
 
 
@@ -11,6 +12,13 @@ class CPUBackend(Backend):
     name = "cpu"
     NO_PAIRS = P.NO_PAIR_CACHE
     NO_DISPLACEMENT = P.NO_DISPLACEMENT
+
+    def __init__(self, precision: str = "float64", device: int = 0):
+        if precision != "float64":
+            # the CPU passes compute in float64 and are compiled (and cached) for float64 arrays
+            raise ConfigError(f"simulation.precision = {precision!r} needs simulation.backend = \"cuda\": "
+                              f"the CPU backend runs in float64")
+        self.precision = precision
 
     # -- arrays -------------------------------------------------------------------------------------
     def zeros(self, n, shape=(), dtype="float64"):

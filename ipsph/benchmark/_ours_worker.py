@@ -88,6 +88,23 @@ def solver_nbytes(sim) -> int:
             + _arrays_nbytes(sim.boundary) + sim.method.nbytes)
 
 
+def device_nbytes(sim) -> int:
+    """The CUDA backend's device arrays: the particle state, the neighbour lists, the search's
+    grid, sort scratch and wall candidates, the walls, the method's scratch and pair cache, and
+    the reductions' partials (each array once)."""
+    be, search = sim.be, sim.search
+    arrays = list(sim.state.arrays().values())
+    lists = getattr(search, "lists", None)
+    arrays += [getattr(lists, k) for k in getattr(type(lists), "__slots__", ())]
+    for d in (getattr(search, "_dev", None) or {}, getattr(search, "_scratch", None) or {}):
+        arrays += list(d.values())
+    for walls in be._walls.values():
+        arrays += list(walls[2:])
+    arrays += [be.reducer.part, *be.reducer.levels]
+    unique = {id(a): a for a in arrays if a is not None}
+    return sum(int(a.nbytes) for a in unique.values()) + sim.method.nbytes
+
+
 def _median(xs):
     s = sorted(xs)
     n = len(s)
@@ -114,6 +131,11 @@ def measure(scene_path: str, method: str, end_time: float | None, overrides: lis
     rss0 = _rss_bytes()
     t0 = time.perf_counter()
     scene = load_scene(path, over)
+    free0 = None
+    if scene.backend == "cuda":  # the device's context first, so its own memory is not counted
+        from ..backends import get_backend
+        mem = get_backend("cuda", scene.precision, scene.device).memory()
+        free0 = mem[0] if mem else None
     fluid_x, fluid_v, boundary_x, notes = sample_scene(scene)
     sim = Simulation(scene, fluid_x, fluid_v, boundary_x)
     del fluid_x, fluid_v, boundary_x
@@ -156,7 +178,10 @@ def measure(scene_path: str, method: str, end_time: float | None, overrides: lis
     errs = [r.density_error_mean for r in recs]
     n = sim.n_fluid
     peak = _peak_rss_bytes()
-    solver_b = solver_nbytes(sim)
+    on_device = sim.be.name == "cuda"
+    solver_b = device_nbytes(sim) if on_device else solver_nbytes(sim)
+    mem = sim.be.memory() if on_device else None
+    used = (free0 - mem[0]) if mem and free0 is not None else None
     return {
         "ours": "ipsph",
         "scene": str(path),
@@ -199,6 +224,13 @@ def measure(scene_path: str, method: str, end_time: float | None, overrides: lis
         "bytes_per_particle_solver": solver_b / n if n else math.nan,
         "bytes_per_particle_pair_cache": sim.method.pair_cache_nbytes / n if n else math.nan,
         "solver_mb": solver_b / 2**20,
+        "backend": scene.backend,
+        "precision": scene.precision,
+        "ns_per_particle_step": 1e6 * phases_med.get("step", math.nan) / n if n else math.nan,
+        # CUDA: the solver's arrays above are device arrays; this is what the device's free memory
+        # dropped by from before the Simulation to after the last step (None on the simulator)
+        "device_bytes_per_particle_used": used / n if used is not None and n else None,
+        "device_total_mb": mem[1] / 2**20 if mem else None,
     }
 
 

@@ -30,7 +30,7 @@ import time
 from pathlib import Path
 
 from ..errors import ConfigError
-from ..params import METHOD_NAMES
+from ..params import BACKEND_NAMES, METHOD_NAMES, PRECISIONS
 from . import report
 from .scenes import (DEFAULT_SCENES, PIPELINES, pipeline_path, resolve_scene, scaling_count,
                      scaling_dt_max, scaling_overrides, scaling_peer_scene)
@@ -64,6 +64,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "10000 100000 1000000)")
     p.add_argument("--scaling-methods", nargs="+", choices=OUR_METHODS, default=["ipsph"],
                    help="methods of the scaling sweep (default: ipsph)")
+    p.add_argument("--backend", choices=BACKEND_NAMES, default="cpu",
+                   help="with --scaling: run the sweep on this backend (cuda: beside the CPU backend's figures for "
+                        "the sizes up to --cpu-max-particles)")
+    p.add_argument("--precision", choices=PRECISIONS, default="float64",
+                   help="with --backend cuda: simulation.precision of the GPU runs (default float64)")
+    p.add_argument("--device", type=int, default=0, metavar="N", help="with --backend cuda: the GPU")
+    p.add_argument("--cpu-max-particles", type=int, default=200_000, metavar="N",
+                   help="with --backend cuda: also run the CPU backend at the sizes up to N fluid particles "
+                        "(default 200000; 0: none)")
     p.add_argument("--scaling-steps", type=int, default=10, metavar="S",
                    help="timed steps per size, after 2 warm-up steps (default 10)")
     p.add_argument("--render-sizes", nargs="*", type=int, metavar="N", default=None,
@@ -125,6 +134,11 @@ def _check_args(args) -> None:
         raise ConfigError(f"--max-load {args.max_load}: must be >= 0 cores")
     if args.scaling_steps < 1:
         raise ConfigError(f"--scaling-steps {args.scaling_steps}: must be >= 1")
+    if args.backend == "cuda":
+        from ..backends._cuda import unavailable
+        why = unavailable(args.device)
+        if why is not None:
+            raise ConfigError(f"--backend cuda: {why}")
     cpus = os.cpu_count() or 1
     if args.threads > cpus:
         _log(f"ipsph bench: warning: --threads {args.threads} is more than the {cpus} logical cores")
@@ -246,20 +260,31 @@ def bench_scaling(args, peer: bool) -> tuple[str, list[dict]]:
             _log(f"  {row['elapsed_s']:.1f} s: {row['ms_step']:.1f} ms/step, "
                  f"{row['us_particle_step']:.3f} us/particle-step, others {row['others_cores']:.2f} cores")
 
+    gpu = args.backend == "cuda"
+    if gpu:
+        from ..backends._cuda import SIMULATOR
+        if SIMULATOR:
+            _log("scaling: NUMBA_ENABLE_CUDASIM=1: the cuda rows time numba-cuda's CPU simulator, not a GPU")
+    placements = [["simulation.backend=cuda", f"simulation.precision={args.precision}",
+                   f"simulation.device={args.device}"]] if gpu else [[]]
     with tempfile.TemporaryDirectory(prefix="ipsph-scaling-") as tmp:
         for n in sizes:
             over = scaling_overrides(n) + list(args.set)
+            runs = placements + ([[]] if gpu and scaling_count(n) <= args.cpu_max_particles else [])
             for m in args.scaling_methods:
-                t0 = time.perf_counter()
-                _log(f"scaling: {m} ~{scaling_count(n):,} fluid particles ...")
-                try:
-                    res = run_ours("default", m, None, args.threads, over, steps=args.scaling_steps, warmup=2,
-                                   timeout=args.timeout)
-                    row = report.normalise(res, "ours", m, "scaling", 0)
-                    row.update(timed_steps=res.get("timed_steps"), raw=res)
-                except (RuntimeError, ConfigError, OSError) as exc:
-                    row = {"label": report.LABELS[("ours", m)], "method": m, "error": str(exc)}
-                record(row, n, t0)
+                for where in runs:
+                    t0 = time.perf_counter()
+                    _log(f"scaling: {m} ~{scaling_count(n):,} fluid particles"
+                         f"{' on ' + ' '.join(w.split('=')[1] for w in where[:2]) if where else ''} ...")
+                    try:
+                        res = run_ours("default", m, None, args.threads, over + where, steps=args.scaling_steps,
+                                       warmup=2, timeout=args.timeout)
+                        row = report.normalise(res, "ours", m, "scaling", 0)
+                        row.update(timed_steps=res.get("timed_steps"), raw=res)
+                    except (RuntimeError, ConfigError, OSError) as exc:
+                        row = {"label": report.LABELS[("ours", m)], "method": m, "error": str(exc),
+                               "backend": "cuda" if where else "cpu"}
+                    record(row, n, t0)
             if peer:
                 t0 = time.perf_counter()
                 _log(f"scaling: SPlisHSPlasH dfsph ~{scaling_count(n):,} fluid particles ...")
@@ -275,6 +300,8 @@ def bench_scaling(args, peer: bool) -> tuple[str, list[dict]]:
                 except (RuntimeError, ConfigError, OSError) as exc:
                     row = {"label": report.LABELS[("peer", "dfsph")], "method": "dfsph", "error": str(exc)}
                 record(row, n, t0)
+    if gpu:
+        return report.backend_scaling_table(rows, args.markdown, args.max_load), rows
     return report.scaling_table(rows, args.markdown, args.max_load), rows
 
 

@@ -64,6 +64,9 @@ def normalise(result: dict, source: str, method: str, scene: str, repeat: int = 
                    bytes_rss=_f(result.get("bytes_per_particle_rss")),
                    bytes_solver=_f(result.get("bytes_per_particle_solver")),
                    bytes_pair_cache=_f(result.get("bytes_per_particle_pair_cache")),
+                   backend=result.get("backend", "cpu"), precision=result.get("precision", "float64"),
+                   ns_particle_step=_f(result.get("ns_per_particle_step")),
+                   bytes_device_used=_f(result.get("device_bytes_per_particle_used")),
                    iters_mean=_f(result.get("pd_passes_mean") if method != "dfsph"
                                  else result.get("density_iterations_mean")),
                    div_iters_mean=_f(result.get("divergence_iterations_mean")) if method != "pf" else math.nan)
@@ -257,6 +260,33 @@ def scaling_table(rows: list[dict], markdown: bool, max_load: float) -> str:
                      _num(r.get("bytes_pair_cache"), "{:.0f}"),
                      _num(r.get("rss_mb"), "{:.0f}"), _num(r.get("setup_s"), "{:.1f}"), _num(r.get("others_cores"))])
     return format_table(SCALING_HEADERS, body, markdown)
+
+
+def backend_scaling_table(rows: list[dict], markdown: bool, max_load: float) -> str:
+    """`ipsph bench --backend cuda --scaling ...`: each size on the GPU and (where it can) the CPU:
+    ms per step and per phase, ns per fluid particle-step, bytes per fluid particle (the solver's
+    arrays: device arrays for cuda; and what the device's free memory dropped by), wall seconds per
+    simulated second, the density error."""
+    phases = [p for p in PHASE_SHORT if any(p in (r.get("phases") or {}) for r in rows if not r.get("error"))]
+    headers = (["backend", "method", "fluid", "timed steps", "ms/step (median)"]
+               + [f"ms {PHASE_SHORT[p]}" for p in phases]
+               + ["ns / fluid particle-step", "bytes / particle (arrays)", "bytes / particle (device used)",
+                  "wall s / simulated s", "density err mean %", "load (others' cores)"])
+    body = []
+    for r in rows:
+        where = f'{r.get("backend", "?")} {r.get("precision", "")}'.strip()
+        if r.get("error"):
+            body.append([where, r["label"], _int(r.get("target")), "—", "failed: " + r["error"].splitlines()[0]]
+                        + ["—"] * (len(headers) - 5))
+            continue
+        label = r["label"] + (" [loaded]" if is_loaded(r, max_load) else "")
+        ph = r.get("phases") or {}
+        body.append([where, label, _int(r.get("fluid")), _int(r.get("timed_steps")), _num(r.get("ms_step"))]
+                    + [_num(ph.get(p)) for p in phases]
+                    + [_num(r.get("ns_particle_step"), "{:.1f}"), _num(r.get("bytes_solver"), "{:.0f}"),
+                       _num(r.get("bytes_device_used"), "{:.0f}"), _num(r.get("wall_per_sim"), "{:.1f}"),
+                       _num(r.get("err_mean"), "{:.2g}"), _num(r.get("others_cores"))])
+    return format_table(headers, body, markdown)
 
 
 def first_frame_table(rows: list[dict], markdown: bool, target: dict | float = 5.0) -> str:

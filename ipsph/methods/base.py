@@ -126,6 +126,7 @@ class Method:
         try:
             yield
         finally:
+            self.be.synchronize()  # a GPU's kernels are asynchronous: time them, not their launch
             self.report.timings[phase] = self.report.timings.get(phase, 0.0) + time.perf_counter() - t0
 
     def begin(self, dt: float) -> StepReport:
