@@ -74,6 +74,18 @@ def sample_scene(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray, list
     return np.ascontiguousarray(fluid_x), np.ascontiguousarray(fluid_v), np.ascontiguousarray(boundary_x), notes
 
 
+def _wall_groups(scene: Scene, n_walls: int) -> np.ndarray | None:
+    """Per wall particle, which moving wall it belongs to (rigid.boundary_groups; None: all static)."""
+    if not any(b.moving for b in scene.boundaries):
+        return None
+    from .rigid import boundary_groups
+    from .sampling import boundary_positions
+    counts = [len(boundary_positions(spec, scene.particle_radius)) for spec in scene.boundaries]
+    if sum(counts) != n_walls:
+        raise ValueError(f"{n_walls} wall particles given, the scene's walls sample {sum(counts)}")
+    return boundary_groups(scene, counts)
+
+
 def _host(array_of, doc: str) -> property:
     """A read-only view of one of the backend's arrays, as a numpy array."""
     return property(lambda sim: sim.be.to_host(array_of(sim)), doc=doc)
@@ -95,9 +107,15 @@ class Simulation:
         self.state = ParticleState(fluid_x, fluid_v, np.full(len(fluid_x), mass), fluid_ids, self.be)
         from .sampling import rest_lattice
         lattice = rest_lattice(scene, boundary_x) if scene.fit_wall_volumes else None
-        self.boundary = Boundary(boundary_x, self.support, scene.density0, lattice, self.spacing)
+        groups = _wall_groups(scene, len(boundary_x))
+        self.boundary = Boundary(boundary_x, self.support, scene.density0, lattice, self.spacing, groups)
+        self.walls = None   # moving walls and rigid bodies (ipsph.rigid)
+        if groups is not None:
+            from .rigid import WallDriver
+            self.walls = WallDriver(scene, self.boundary, self.support, mass)
         self.search = self.be.neighbour_search(self.support, self.boundary)
         self.method = METHODS[scene.method](scene, self.state, self.boundary, self.search, self.be, mass)
+        self.method.walls = self.walls
         self.time = 0.0
         self.steps = 0
         self.clamped_steps = 0
@@ -107,7 +125,7 @@ class Simulation:
         self.domain = self._domain(boundary_x)
         self.method.prepare()
         vmax, _ = self.be.speed_energy(self.state.v, self.state.m)
-        self.dt_next, self._clamped = self._cfl(vmax)
+        self.dt_next, self._clamped = self._cfl(self._wall_speed(vmax))
         if ts.dt_initial is not None:
             self.dt_next = min(ts.dt_initial, self.dt_max, max(self._viscous_dt(), self.dt_min))
 
@@ -146,6 +164,8 @@ class Simulation:
         """Advance one step of `dt` (default: the CFL step) and check the state's health."""
         dt = self.dt_next if dt is None else float(dt)
         t0 = time.perf_counter()
+        if self.walls is not None:
+            self.walls.t = self.time
         try:
             rep = self.method.step(dt)
         except NumericalFailure as exc:  # raised inside the step (e.g. the neighbour grid blew up)
@@ -161,12 +181,19 @@ class Simulation:
         vmax, ke = self.be.speed_energy(st.v, st.m)
         clamped = self._clamped  # this step's CFL value fell below dt_min
         self.clamped_steps += clamped
-        self.dt_next, self._clamped = self._cfl(vmax)
+        self.dt_next, self._clamped = self._cfl(self._wall_speed(vmax))
         rep.timings["step"] = time.perf_counter() - t0
         return StepStats(**vars(rep), step=self.steps, time=self.time, max_speed=vmax, kinetic_energy=ke,
                          dt_clamped=clamped)
 
+    def _wall_speed(self, vmax: float) -> float:
+        """The CFL speed: the fluid's, or a moving wall's if faster (a body never moves more than
+        the CFL fraction of d per step, so it cannot tunnel through a wall layer)."""
+        return vmax if self.walls is None else max(vmax, self.walls.max_speed())
+
     def _first_unhealthy(self) -> int:
+        if self.walls is not None and len(self.boundary.x):   # the containers may move
+            self.domain = self._domain(self.boundary.x)
         return self.be.first_unhealthy(self.state.x, self.state.v, self.domain[0], self.domain[1])
 
     def _fail(self, i: int, inner: str | None = None):
@@ -245,6 +272,7 @@ class Simulation:
         do not change it)."""
         return {"particles": self.state.state_dict(), "boundary": self.boundary.state_dict(),
                 "search": self.search.state_dict(), "method": self.method.state_dict(),
+                **({"walls": self.walls.state_dict()} if self.walls is not None else {}),
                 "clock": {"time": self.time, "steps": self.steps, "clamped_steps": int(self.clamped_steps),
                           "dt_next": self.dt_next, "next_clamped": bool(self._clamped)}}
 
@@ -261,6 +289,8 @@ class Simulation:
         self.clamped_steps = int(c["clamped_steps"])
         self.dt_next, self._clamped = float(c["dt_next"]), bool(c["next_clamped"])
         self.method.load_state_dict(d["method"])
+        if self.walls is not None:
+            self.walls.load_state_dict(d["walls"])
         self.method.prepare()
 
     # -- particle arrays, on the host (current order; `ids` maps them to the initial numbering) --

@@ -158,6 +158,9 @@ def _build_scene(data: dict, base_dir: Path, name: str | None, source: Path | No
                 raise ctx.fail(f"{kind}[{i}].name", f"{item.name!r} is already the name of "
                                f"{kind}[{seen[item.name]}]; names must be unique")
             seen[item.name] = i
+    if kw.get("fit_wall_volumes") and any(b.moving for b in boundaries):
+        raise ctx.fail("simulation.fit_wall_volumes", "is not supported with moving walls or rigid bodies "
+                       "(the fit is for walls at rest against a lattice): set it to false")
     return Scene(fluids=fluids, boundaries=boundaries, **sections, **kw)
 
 
@@ -236,6 +239,9 @@ def _convert(ctx: _Ctx, p: Param, value: Any, shown: str) -> Any:
         if not lo < hi:
             raise ctx.fail(shown, f"min {_fmt(lo)} must be < max {_fmt(hi)}")
         return (lo, hi)
+    if kind == "keyframes":
+        from .bodies import convert_keyframes
+        return convert_keyframes(ctx, value, shown)
     if kind == "fields":
         if not isinstance(value, (list, tuple)):
             raise ctx.fail(shown, f"expected a list of field names, got {_show(value)}")
@@ -327,6 +333,11 @@ def _entity(ctx: _Ctx, kind: str, i: int, entry: dict, base_dir: Path, r: float)
         extra["velocity"] = g("velocity")
     else:
         extra["role"] = Role(g("role"))
+        if has_mesh:
+            mesh_given = _resolve_mesh(ctx, f"{prefix}.mesh", vals[f"{kind}.mesh"], base_dir)
+        from .bodies import boundary_extras   # motion, rigid bodies
+        extra.update(boundary_extras(ctx, prefix, vals, extra["role"], "mesh" if has_mesh else "box",
+                                     mesh_given if has_mesh else None))
     if has_box:
         for end in ("min", "max"):
             if f"{kind}.box.{end}" not in vals:
