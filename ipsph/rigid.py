@@ -165,6 +165,7 @@ class WallDriver:
                 self.kinematic.append((grp, spec.name, Motion(spec.motion, pivot)))
             self.force[grp] = (np.zeros(3), np.zeros(3))
         self._fb = np.zeros((boundary.n, 3))
+        self.surface_cache: dict = {}   # name -> the wall's surface at its placement (io.bodies)
         self.place(0.0)
 
     # -- the two calls of a step ---------------------------------------------------------------

@@ -158,9 +158,6 @@ def _build_scene(data: dict, base_dir: Path, name: str | None, source: Path | No
                 raise ctx.fail(f"{kind}[{i}].name", f"{item.name!r} is already the name of "
                                f"{kind}[{seen[item.name]}]; names must be unique")
             seen[item.name] = i
-    if kw.get("fit_wall_volumes") and any(b.moving for b in boundaries):
-        raise ctx.fail("simulation.fit_wall_volumes", "is not supported with moving walls or rigid bodies "
-                       "(the fit is for walls at rest against a lattice): set it to false")
     return Scene(fluids=fluids, boundaries=boundaries, **sections, **kw)
 
 
