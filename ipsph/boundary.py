@@ -205,13 +205,9 @@ class Boundary:
         self.psi = self._volumes()
         self.fit_report: dict = {}
         if rest_lattice is not None and len(rest_lattice) and self.n:
-            # moving walls keep Akinci's volumes (invariant under their motion); the fit is for walls at rest
-            fixed = slice(None) if self.groups is None else np.flatnonzero(self.groups == 0)
-            psi_fit, self.fit_report = fit_volumes(np.ascontiguousarray(self.x[fixed]), self.psi[fixed], rest_lattice,
-                                                   self.h / 2.0 if spacing is None else spacing, self.h)
-            self.psi = psi_fit if self.groups is None else self.psi
-            if self.groups is not None:
-                self.psi[fixed] = psi_fit
+            # moving walls too, once, at their placement: a rigid motion keeps their volumes
+            self.psi, self.fit_report = fit_volumes(self.x, self.psi, rest_lattice,
+                                                    self.h / 2.0 if spacing is None else spacing, self.h)
         self.m = self.rho0 * self.psi
 
     @property

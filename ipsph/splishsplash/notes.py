@@ -28,11 +28,12 @@ validated as a TOML scene, so override keys are ipsph's (`--set simulation.metho
 | `FluidBlocks[]`: `start`, `end`, `translation`, `scale`, `initialVelocity` | `[[fluid]] box` with min = scale * start + translation, max = scale * end + translation (as SPlisHSPlasH's scene loader), `velocity` |
 | `FluidModels[]`: `particleFile` (a mesh), `translation`, `scale`, `rotationAxis`, `rotationAngle` (radians), `initialVelocity` | `[[fluid]] mesh`, `translate`, `scale`, `rotate_axis`, `rotate_deg`, `velocity` |
 | `RigidBodies[]`: `geometryFile`, `translation`, `scale`, `rotationAxis`, `rotationAngle` (radians), `isWall`, `mapInvert` | `[[boundary]] mesh`, ..., `role` = container if `isWall` or `mapInvert`, else obstacle |
+| `RigidBodies[]`: `isDynamic` = true, `density` (default 1000) | a dynamic rigid body: `[[boundary]] density`, role obstacle (ipsph.rigid; the mesh must be closed) |
 
 Mesh paths are relative to the scene file, as in SPlisHSPlasH (`../models/UnitBox.obj`).
 
 Refused (ConfigError): `simulationMethod` other than 4 or 5, `denseMode` other than 0,
-`isDynamic` bodies, `Emitters`, `AnimationFields`, `sim2D`, partio particle files as fluid models,
+`isDynamic` bodies that are walls (`isWall`, `mapInvert`) or have a density <= 0, `Emitters`, `AnimationFields`, `sim2D`, partio particle files as fluid models,
 `invert`ed fluid models, several materials with different density or viscosity.
 
 Warned about, in one message (`Scene.warnings`): every other key, e.g.
