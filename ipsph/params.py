@@ -154,8 +154,8 @@ PARAMS: tuple[Param, ...] = (
        "section 1): a block that starts against walls has no corner pop (the tank at rest: 1 m/s "
        "instead of 27 m/s). Walls get up to 34 % lighter, so fast impacts come closer: the default "
        "dam break with PF and a coarse IPSPH dam break went through a wall with it. For scenes "
-       "that start at rest. Moving walls and rigid bodies are fitted at their placement (a rigid "
-       "motion keeps the volumes).", "fit_wall_volumes"),
+       "that start at rest. Only static walls are fitted: moving walls and rigid bodies keep Akinci's "
+       "volumes.", "fit_wall_volumes"),
     # -- [time_step] ----------------------------------------------------------------------------
     _P("time_step.cfl_factor", "float", 1.0, "", "CFL factor lambda in "
        "dt = lambda * 0.4 * d / max|v|.", lo=0.0, hi=2.5, lo_open=True),

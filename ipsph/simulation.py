@@ -67,6 +67,10 @@ def sample_scene(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray, list
     if len(scene.boundaries) and len(fluid_x):
         kept, removed = sampling.remove_overlaps(fluid_x, boundary_x, sampling.default_overlap_distance(r),
                                                  boundaries=scene.boundaries, radius=r)
+        if any(spec.dynamic for spec in scene.boundaries):   # a wider gap around rigid bodies (rigid.BODY_GAP_D)
+            from .rigid import body_gap_mask
+            kept &= body_gap_mask(fluid_x, scene, walls, r)
+            removed = int(len(fluid_x) - kept.sum())
         if removed:
             notes.append(f"{removed} of {len(fluid_x)} fluid particles overlapped a wall or lay outside the "
                          f"containers and were removed")
