@@ -195,7 +195,7 @@ class Boundary:
 
     def __init__(self, x: np.ndarray, support: float, rho0: float, rest_lattice: np.ndarray | None = None,
                  spacing: float | None = None, groups: np.ndarray | None = None):
-        self.x = np.ascontiguousarray(x, dtype=np.float64).reshape(-1, 3)
+        self.x = np.array(x, dtype=np.float64).reshape(-1, 3)   # a copy: moving walls write into it
         self.h = float(support)
         self.rho0 = float(rho0)
         self.v = np.zeros_like(self.x)
@@ -253,7 +253,7 @@ class Boundary:
     def load_state_dict(self, d: dict[str, np.ndarray]) -> None:
         if len(d["x"]) != len(self.x):
             raise ValueError(f"saved boundary has {len(d['x'])} particles, this scene {len(self.x)}")
-        self.x = np.ascontiguousarray(d["x"], dtype=np.float64)
+        self.x = np.array(d["x"], dtype=np.float64)   # a copy: moving walls write into it
         self.psi = np.ascontiguousarray(d["psi"], dtype=np.float64)
         self.m = np.ascontiguousarray(d["m"], dtype=np.float64)
         if self.moving:

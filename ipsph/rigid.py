@@ -311,16 +311,26 @@ class WallDriver:
             out.append((t, name, *c, *_quat_of(r), *v, *f, *tau))
         return out
 
-    def state_dict(self) -> dict:
-        return {"t": self.t, "bodies": {b.name: b.state() for b in self.bodies},
-                "force": {str(g): np.concatenate(ft) for g, ft in self.force.items()}}
+    def state_dict(self) -> dict[str, np.ndarray]:
+        """Flat {key: array} (a checkpoint stores it as it is): the clock, every body's state, the
+        last reaction and the kinematic walls' pivots (their groups and placements are the Boundary's)."""
+        d = {"t": np.array(self.t), "t_walls": np.array(self.t_walls)}
+        for body in self.bodies:
+            d.update({f"body.{body.name}.{k}": v for k, v in body.state().items()})
+        d.update({f"force.{g}": np.concatenate(ft) for g, ft in self.force.items()})
+        d.update({f"pivot.{name}": m.pivot.copy() for _, name, m in self.kinematic})
+        return d
 
     def load_state_dict(self, d: dict) -> None:
         self.t = float(d["t"])
         for body in self.bodies:
-            body.load(d["bodies"][body.name])
-        for g, ft in d["force"].items():
-            self.force[int(g)] = (np.asarray(ft[:3]), np.asarray(ft[3:]))
+            body.load({k: d[f"body.{body.name}.{k}"] for k in body.state()})
+        for g in self.force:
+            ft = np.asarray(d[f"force.{g}"], dtype=np.float64)
+            self.force[g] = (ft[:3].copy(), ft[3:].copy())
+        for i, (grp, name, m) in enumerate(self.kinematic):
+            m.pivot = np.asarray(d[f"pivot.{name}"], dtype=np.float64).copy()
+        self.t_walls = float(d["t_walls"])   # the walls are where the saved step left them (the Boundary's state)
 
 
 def _quat_of(r: np.ndarray) -> np.ndarray:
