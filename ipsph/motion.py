@@ -130,12 +130,3 @@ class Motion:
     def velocities(self, x0: np.ndarray, t: float) -> np.ndarray:
         h = VELOCITY_DT
         return (self.positions(x0, t + h) - self.positions(x0, t - h)) / (2.0 * h)
-
-    def max_speed(self, x0: np.ndarray, end_time: float, samples: int = 200) -> float:
-        """The fastest wall particle over [0, end_time] (sampled; for the CFL step)."""
-        if len(x0) == 0:
-            return 0.0
-        lo, hi = x0.min(axis=0), x0.max(axis=0)
-        corners = np.array([[a, b, c] for a in (lo[0], hi[0]) for b in (lo[1], hi[1]) for c in (lo[2], hi[2])])
-        return max(float(np.linalg.norm(self.velocities(corners, t), axis=1).max())
-                   for t in np.linspace(0.0, end_time, samples))
