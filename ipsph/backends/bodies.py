@@ -353,5 +353,5 @@ def wall_rate_at(i, x, xb, mb, vb, nb, cb, h, buf, gvb):
     s = 0.0
     for k in range(n_b):
         d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
-        s += buf[C0, k] * grad_w_factor(np.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
+        s += buf[C0, k] * grad_w_factor(math.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
     gvb[i] = s
