@@ -167,7 +167,7 @@ def restore(scene: Scene, ck: Checkpoint):
     from .simulation import Simulation
     sd = state_dict(ck)
     p = sd["particles"]
-    sim = Simulation(scene, p["x"], p["v"], sd["boundary"]["x"], fluid_ids=p["id"])
+    sim = Simulation(scene, p["x"], p["v"], sd["boundary"]["x"], fluid_ids=p["id"], settle=False)
     try:
         sim.load_state_dict(sd)
     except (ValueError, KeyError) as exc:

@@ -47,6 +47,7 @@ PHASES = {
     "densitySolve": ("dens", "DFSPH density solve"),
 }
 
+SETTLE_MODES = ("auto", "on", "off")  # simulation.settle: the pre-pass before t = 0
 BOUNDARY_ROLES = ("container", "obstacle")  # boundary.role: fluid inside the surface, or around it
 OUTPUT_FIELDS = ("velocity", "density", "pressure", "mass", "id")
 # render.view: direction from the focal point to the camera, and the view-up vector (y is up)
@@ -154,6 +155,12 @@ PARAMS: tuple[Param, ...] = (
        "instead of 27 m/s). Walls get up to 34 % lighter, so fast impacts come closer: the default "
        "dam break with PF and a coarse IPSPH dam break went through a wall with it. For scenes "
        "that start at rest.", "fit_wall_volumes"),
+    _P("simulation.settle", "choice", "auto", "", "Settle the fluid under gravity before t = 0 "
+       "(docs/method.md section 1, \"A start at rest\"): the solver's own steps with the "
+       "velocities damped, until a step from rest moves nothing, so a pool starts in its discrete "
+       "equilibrium with its hydrostatic pressure. auto: only fluid at rest that spans its "
+       "container's floor (a tank, a pool), never a column that is meant to fall or flow.",
+       "settle", choices=SETTLE_MODES),
     # -- [time_step] ----------------------------------------------------------------------------
     _P("time_step.cfl_factor", "float", 1.0, "", "CFL factor lambda in "
        "dt = lambda * 0.4 * d / max|v|.", lo=0.0, hi=2.5, lo_open=True),
