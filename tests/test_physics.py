@@ -29,7 +29,7 @@ FREE_FALL_TOL = 0.005
 # Issue 16: at t = 0, on the lattice (before settling), every particle below the free-surface
 # layer reads rho0 within 0.2 %: 1/30 of what Akinci's volumes on the wall surface gave on a flat
 # face (+6.4 %) and 1/70 of the corners (+14.5 %); the walls 0.1 d behind the surface give
-# -0.14 % .. +0.11 % (method.md section 1).
+# -0.14 % .. +0.09 % (method.md section 1).
 REST_DENSITY_TOL = 2e-3
 # Issue 16: the free surface (mean height of the top layer + r) stays within 1.5 r of its t = 0
 # height at every frame of the 4 s tank (the 0.8 d^3 mass sank 5 r in the first second); and
