@@ -176,7 +176,8 @@ def restore(scene: Scene, ck: Checkpoint):
     if scene.emitters:  # what it holds plus what is still to come by this run's end_time
         from .emitters import resumed_capacity
         capacity = resumed_capacity(scene, len(p["x"]), sd.get("flow"))
-    sim = Simulation(scene, p["x"], p["v"], sd["boundary"]["x"], fluid_ids=p["id"], capacity=capacity)
+    sim = Simulation(scene, p["x"], p["v"], sd["boundary"]["x"], fluid_ids=p["id"], capacity=capacity,
+                     settle=False)
     try:
         sim.load_state_dict(sd)
     except (ValueError, KeyError) as exc:

@@ -169,6 +169,7 @@ class Scene:
     viscosity: float = D("simulation.viscosity")
     standard_viscosity: float = D("simulation.standard_viscosity")
     fit_wall_volumes: bool = D("simulation.fit_wall_volumes")
+    settle: str = D("simulation.settle")
     time_step: TimeStepConfig = TimeStepConfig()
     solver: SolverConfig = SolverConfig()
     fluids: tuple[FluidSpec, ...] = ()

@@ -186,6 +186,12 @@ def _run(scene: Scene, opts: RunOptions, resume, renderer, clock: RunClock, surf
             raise ConfigError("the scene has no fluid particles after sampling (check [[fluid]] entries and "
                               "that the fluid lies inside its container)")
         sim = Simulation(scene, fluid_x, fluid_v, boundary_x)
+        if sim.settle_report:
+            st = sim.settle_report
+            notes.append(f"settled before t = 0 (simulation.settle = {scene.settle}): {st['steps']} steps, particles "
+                         f"moved {st['moved_mean_r']:.2f} r on average (at most {st['moved_max_r']:.2f} r)"
+                         + ("" if st["converged"] else f", still at {st['max_speed']:.3g} m/s"))
+            print(f"ipsph: note: {notes[-1]}", file=sys.stderr)
     else:
         sim = ckpt.restore(scene, resume)
         fluid_x, boundary_x, notes = sim.positions, sim.boundary.x, []
@@ -202,6 +208,7 @@ def _run(scene: Scene, opts: RunOptions, resume, renderer, clock: RunClock, surf
             "status": "running", "completed": False, "exit_code": None,
             "particle_radius": scene.particle_radius, "fluid_particles": sim.n_fluid,
             "boundary_particles": sim.n_boundary, "wall_fit": sim.boundary.fit_report,
+            "settle": sim.settle_report,
             "domain_bounds": [float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1]), float(lo[2]), float(hi[2])],
             "frames": 0, "steps": 0, "sim_time": 0.0, "wall_seconds": None, "threads": numba.get_num_threads(),
             "notes": notes, "warnings": list(scene.warnings), "versions": provenance.versions(),

@@ -8,7 +8,9 @@ Conventions (r particle radius, d = 2r):
   a flat face aligned with the box is not over-counted), kept where `inside.inside_mesh` says
   inside. Count · d³ then estimates the mesh volume without bias.
 - Boundary box (also a mesh that is an axis-aligned box after scaling, e.g. UnitBox.obj): a regular
-  grid per face, n = ceil(edge / 1.5r) intervals per edge, edge and corner nodes once.
+  grid per face of the box moved 0.1 d behind its surface (grown for a container, shrunk for an
+  obstacle: BOX_WALL_OFFSET_FACTOR), n = ceil(edge / 1.5r) intervals per edge, edge and corner
+  nodes once.
 - Boundary mesh: candidates = feature-edge corners, then feature edges (30°) sampled every r/5,
   then face samples of vtkPolyDataPointSampler (Distance r/5); a greedy pass in that priority order
   keeps a candidate when no kept sample lies within r (the Poisson-disk rule of
@@ -34,8 +36,12 @@ from ipsph.errors import ConfigError
 if TYPE_CHECKING:
     import pyvista as pv
 
-SAMPLER_VERSION = "ipsph-sampling-2"
+SAMPLER_VERSION = "ipsph-sampling-3"
 BOUNDARY_SPACING_FACTOR = 1.5     # box-grid spacing <= 1.5 r (method.md section 1)
+# Box walls: the grid sits this fraction of d = 2r behind the wall surface (outside a container,
+# inside an obstacle). With Akinci's volumes a layer on the surface makes the first fluid layer,
+# d away, read 1.064 rho0; 0.1 d back it reads rho0 to 1e-4 (method.md section 1, "Walls").
+BOX_WALL_OFFSET_FACTOR = 0.1
 POISSON_RADIUS_FACTOR = 1.0       # general meshes: samples at least r apart, none missing beyond r
 CANDIDATE_SPACING_FACTOR = 0.2    # candidate density r/5 (ecosystem.md)
 FEATURE_ANGLE_DEG = 30.0
@@ -275,8 +281,11 @@ def estimate_fluid_count(spec: model.FluidSpec, radius: float) -> int:
 
 
 # ----------------------------------------------------------------------------- boundary
-def _box_surface_grid(lo: np.ndarray, hi: np.ndarray, max_spacing: float) -> np.ndarray:
-    """Nodes of a regular grid on the 6 faces: n = ceil(edge / max_spacing) intervals; shared nodes once."""
+def _box_surface_grid(lo: np.ndarray, hi: np.ndarray, max_spacing: float, offset: float = 0.0) -> np.ndarray:
+    """Nodes of a regular grid on the 6 faces: n = ceil(edge / max_spacing) intervals; shared nodes once.
+
+    With `offset` the grid lies on the box grown by `offset` on every side (shrunk if negative)."""
+    lo, hi = lo - offset, hi + offset
     ext = hi - lo
     n = np.maximum(np.ceil(ext / max_spacing - 1e-9).astype(np.int64), 1)
     ax = [lo[k] + ext[k] * (np.arange(n[k] + 1, dtype=np.float64) / n[k]) for k in range(3)]
@@ -338,14 +347,16 @@ def _sample_general_surface(mesh, r: float) -> np.ndarray:
 
 def _sample_boundary(spec: model.BoundarySpec, r: float) -> np.ndarray:
     step = BOUNDARY_SPACING_FACTOR * r
+    # behind the surface, away from the fluid: outwards for a container, inwards for an obstacle
+    offset = BOX_WALL_OFFSET_FACTOR * spacing(r) * (1.0 if spec.role == model.Role.CONTAINER else -1.0)
     if _shape(spec) == "box":
         lo, hi = _scaled_box(spec)
-        return meshes.transform_points(_box_surface_grid(lo, hi, step), _rigid(spec.transform))
+        return meshes.transform_points(_box_surface_grid(lo, hi, step, offset), _rigid(spec.transform))
     scaled, _ = _prepared(_mesh_path(spec), model.Transform(scale=spec.transform.scale),
                           need_closed=False, allow_open=True)
     box = meshes.aligned_box(scaled)
     if box is not None:
-        return meshes.transform_points(_box_surface_grid(box[0], box[1], step), _rigid(spec.transform))
+        return meshes.transform_points(_box_surface_grid(box[0], box[1], step, offset), _rigid(spec.transform))
     mesh, _ = _prepared(_mesh_path(spec), spec.transform, need_closed=False, allow_open=True)
     return _sample_general_surface(mesh, r)
 

@@ -41,6 +41,7 @@ def test_default_scene_writes_a_readable_series(default_run):
     run = read_run_json(out / "run.json")
     assert run["completed"] and run["status"] == "completed"
     assert run["wall_fit"] == {}  # simulation.fit_wall_volumes is off by default (method.md section 1)
+    assert run["settle"] == {}    # a dam break's column is never settled (simulation.settle = auto)
     n = run["fluid_particles"]
     for f in sorted((out / "frames").glob("*.vtu")):
         m = meshio.read(f)

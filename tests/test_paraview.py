@@ -24,9 +24,9 @@ from ipsph.paraview import view_settings
 # within 1 % of rho0 in the interior (at least H from the floor and the free surface).
 SLOPE_TOL = 0.05
 DENSITY_TOL = 0.01
-# The tank starts from its sampling lattice and settles; the profile is averaged over the frames
-# of the second simulated second, which removes the sloshing (one frame reads 0.93-1.06 rho0 g,
-# the mean over 1-2 s 0.975 with today's 0.8 d^3 particle volume).
+# The tank is settled before t = 0 (simulation.settle = auto, method.md section 1); the profile is
+# averaged over the frames of the second simulated second (before the pre-pass existed that removed
+# the sloshing: one frame read 0.93-1.06 rho0 g, the mean over 1-2 s 0.975 on the 0.8 d^3 water).
 TANK_END, TANK_AVERAGE_FROM = 2.0, 1.0
 # A fluid pixel "has its particle's colour" when its RGB direction is within this angle of the
 # colour map's colour for that particle's speed (lighting scales a colour, keeping its direction;

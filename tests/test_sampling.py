@@ -165,14 +165,16 @@ def test_dambreak_container_unitbox_is_a_box_grid():
     spec = model.BoundarySpec("tank", "mesh", mesh=MODELS / "UnitBox.obj",
                               transform=model.Transform(translate=(0.0, 1.5, 0.0), scale=(4.0, 3.0, 1.5)))
     y = sampling.boundary_positions(spec, R)
-    # n = ceil(edge / 1.5r) intervals = 107, 80, 40: (108·81·41) − (106·79·39) = 32,082 (method.md: 32k)
-    assert len(y) == 32_082
+    # the grid lies on the box grown by e = 0.1 d (method.md section 1): n = ceil((edge + 2e) / 1.5r)
+    # intervals = 107, 81, 41: (108·82·42) − (106·80·40) = 32,752
+    e = sampling.BOX_WALL_OFFSET_FACTOR * 2 * R
+    assert len(y) == 32_752
     same = sampling.boundary_positions(wall_box((-2.0, 0.0, -0.75), (2.0, 3.0, 0.75)), R)
     np.testing.assert_allclose(y, same, atol=1e-12)
     lo, mean, hi = spacing_stats(y, R)
     assert lo >= 0.5 and hi <= 1.5 + 1e-9
     assert len(np.unique(np.round(y / (1e-6 * R)), axis=0)) == len(y)  # no duplicates
-    for corner in [(-2, 0, -0.75), (2, 3, 0.75), (2, 0, -0.75)]:  # corners included exactly
+    for corner in [(-2 - e, -e, -0.75 - e), (2 + e, 3 + e, 0.75 + e), (2 + e, -e, -0.75 - e)]:  # corners, exactly
         assert np.min(np.linalg.norm(y - corner, axis=1)) < 1e-12
 
 
@@ -181,8 +183,11 @@ def test_box_boundary_coverage_and_spacing():
     # grid of spacing s leaves the cell centre s/√2 from its nodes: with s <= 1.5 r that is 1.06 r,
     # and the free hole between the boundary spheres (radius r) is 0.12 r wide, far below a fluid
     # particle's 2r. We assert the grid's own bound s_max/√2 (sampled surface points: ≤ bound).
+    # (on the surface the grid lies on: the box grown by 0.1 d, method.md section 1)
     lo, hi = (0.0, 0.0, 0.0), (0.7, 0.45, 0.3)
     y = sampling.boundary_positions(wall_box(lo, hi), R)
+    e = sampling.BOX_WALL_OFFSET_FACTOR * 2 * R
+    lo, hi = tuple(np.subtract(lo, e)), tuple(np.add(hi, e))
     s = np.max(np.subtract(hi, lo) / np.ceil(np.subtract(hi, lo) / (1.5 * R)))
     assert box_coverage(y, lo, hi, R) <= s / math.sqrt(2) / R + 1e-9
     assert spacing_stats(y, R)[0] >= 0.5

@@ -99,7 +99,7 @@ def test_thick_fluid_steps_within_the_viscous_limit_and_stays_calm():
     from ipsph.simulation import VISCOUS_STEP, Simulation
     scene = scene_from_dict({
         "simulation": {"method": "ipsph", "particle_radius": R, "end_time": 0.05, "viscosity": 0.0,
-                       "standard_viscosity": THICK_NU},
+                       "standard_viscosity": THICK_NU, "settle": "off"},   # the block's own first steps
         "time_step": {"dt_max": 0.005},
         "fluid": [{"name": "block", "box": {"min": [0.05, 0.05, 0.05], "max": [0.35, 0.35, 0.35]}}],
         "boundary": [{"name": "box", "role": "container", "box": {"min": [0, 0, 0], "max": [0.4, 0.6, 0.4]}}],
