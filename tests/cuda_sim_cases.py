@@ -27,7 +27,7 @@ def tank(method: str, r: float = 0.025):
     """A 5^3 = 125 particle column at rest in a closed box (test_physics's tank, coarser)."""
     return scene_from_dict({
         "simulation": {"method": method, "particle_radius": r, "end_time": 1.0, "fit_wall_volumes": True,
-                       "settle": "off"},  # compare the backends step by step from the sampled start,
+                       "settle": "off"},  # the backends compared step by step from the sampled start
         "time_step": {"dt_max": 0.005},
         "fluid": [{"box": {"min": [0.0, 0.0, 0.0], "max": [0.3, 0.3, 0.3]}}],
         "boundary": [{"role": "container", "box": {"min": [0.0, 0.0, 0.0], "max": [0.3, 0.6, 0.3]}}],
