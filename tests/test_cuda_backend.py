@@ -59,7 +59,7 @@ def _nvvm_available() -> bool:
 def results(tmp_path_factory):
     """{case: parsed JSON}; the cases (and the benchmark's smoke run) run concurrently."""
     bench_json = tmp_path_factory.mktemp("bench") / "bench.json"
-    procs = {c: _start(c) for c in ("methods", "float32", "passes")}
+    procs = {c: _start(c) for c in ("methods", "float32", "passes", "emitters")}
     procs["bench"] = _cli(["bench", "--backend", "cuda", "--scaling", "300", "--scaling-steps", "1", "--no-peer",
                            "--json", str(bench_json)], {}, bench_json.parent, wait=False)
     if _nvvm_available():
@@ -85,6 +85,23 @@ def test_float64_follows_the_cpu_backend(results, method):
         assert abs(r["dt_next"][0] - r["dt_next"][1]) <= FLOAT64_REL * r["dt_next"][0]
     # the solvers did work (a run of zero iterations would compare nothing)
     assert sum(sum(r["it_cpu"][:3]) for r in rows) > 10
+
+
+@pytest.mark.parametrize("method", ["ipsph", "pf", "dfsph"])
+def test_emitters_and_sinks_follow_the_cpu_backend(results, method):
+    """Emission (concat onto the state), the sink's compaction (take of fewer rows) and the
+    scratch's views of the active rows (head) on the device: per step the same counts and ids as
+    the CPU backend, positions, velocities and densities to FLOAT64_REL."""
+    rows = results["emitters"][method]
+    for step, r in enumerate(rows):
+        for key in ("n", "emitted", "removed", "capacity"):
+            assert r[key][0] == r[key][1], f"{method} step {step}: {key} {r[key]}"
+        assert r["same_ids"], f"{method} step {step}: the ids differ"
+        for field in ("x", "v", "rho"):
+            assert r[field] <= FLOAT64_REL, f"{method} step {step}: {field} differs by {r[field]:.3g} (relative)"
+    # the scene did what it is for: layers emitted, a layer removed, fewer particles than capacity
+    assert sum(r["emitted"][0] for r in rows) >= 36 and sum(r["removed"][0] for r in rows) > 0
+    assert rows[-1]["n"][0] < rows[-1]["capacity"][0]
 
 
 def test_float32_within_the_physics_tolerances(results):

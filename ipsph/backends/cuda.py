@@ -121,9 +121,22 @@ class CUDABackend(Backend):
         return a.reshape(n, a.size // n if n else 1)
 
     def take(self, a, perm):
-        out = self._new(a.shape, a.dtype)
-        self._launch(self.P.take_rows, a.shape[0], self._rows(a), perm, self._rows(out))
+        """new[i] = a[perm[i]] for the len(perm) <= len(a) rows of perm (a permutation, or the
+        ascending indices a compaction keeps)."""
+        out = self._new((perm.shape[0], *a.shape[1:]), a.dtype)
+        self._launch(self.P.take_rows, out.shape[0], self._rows(a), perm, self._rows(out))
         return out
+
+    def concat(self, a, b):
+        out = self._new((a.shape[0] + b.shape[0], *a.shape[1:]), a.dtype)
+        na = a.shape[0]
+        for part, lo, hi in ((a, 0, na), (b, na, out.shape[0])):
+            if hi > lo:
+                self._launch(self.P.copy, part.size, self._flat(out[lo:hi]), self._flat(part))
+        return out
+
+    def head(self, a, n):
+        return a[:n]  # a device array's leading rows: a view of the same memory
 
     def untake(self, a, perm):
         old = self._new(a.shape, a.dtype)
