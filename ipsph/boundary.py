@@ -5,8 +5,11 @@ effective mass rho0 * Psi_b, where the volume
 
     Psi_b = 1 / (W(0) + sum_{b'} W(x_b - x_b'))          [AIA*12, eq. 4]
 
-is computed once (the walls never move). No method branches on the boundary: a scene
-without walls simply has zero boundary particles.
+is computed once. No method branches on the boundary: a scene without walls simply has zero
+boundary particles. Walls may move rigidly (kinematic walls, rigid bodies: ipsph.rigid): each
+moving wall is its own `group`, whose volumes are summed over its own particles only, so they
+are invariant under its motion (a wall sliding past another does not change either's volumes);
+its particles carry velocities `v` (zero for static walls), which the density rate sees.
 
 Given the scene's rest lattice (`sampling.rest_lattice`: the fluid's lattice continued over the
 free space near the walls), the Akinci volumes are then corrected so that fluid at rest reads
@@ -183,21 +186,34 @@ def fit_volumes(xb: np.ndarray, psi_akinci: np.ndarray, lattice: np.ndarray, spa
 
 
 class Boundary:
-    """Boundary particles: positions `x`, volumes `psi` and masses `m = rho0 * psi`.
+    """Boundary particles: positions `x`, volumes `psi`, masses `m = rho0 * psi`, velocities `v`.
 
     psi are Akinci's volumes, fitted to `rest_lattice` when one is given (`fit_volumes`).
+    `groups` (optional, one int per particle): 0 for static walls, k > 0 for the k-th moving wall;
+    volumes are computed per group. Without groups every wall is static (`moving` False, `v` 0).
     """
 
     def __init__(self, x: np.ndarray, support: float, rho0: float, rest_lattice: np.ndarray | None = None,
-                 spacing: float | None = None):
-        self.x = np.ascontiguousarray(x, dtype=np.float64).reshape(-1, 3)
+                 spacing: float | None = None, groups: np.ndarray | None = None):
+        self.x = np.array(x, dtype=np.float64).reshape(-1, 3)   # a copy: moving walls write into it
         self.h = float(support)
         self.rho0 = float(rho0)
+        self.v = np.zeros_like(self.x)
+        self.groups = None if groups is None else np.ascontiguousarray(groups, dtype=np.int32)
+        self.x0 = None if groups is None else self.x.copy()   # placement at t = 0 (moving walls)
+        self.moving = self.groups is not None and bool(np.any(self.groups > 0))
         self.psi = self._volumes()
         self.fit_report: dict = {}
         if rest_lattice is not None and len(rest_lattice) and self.n:
-            self.psi, self.fit_report = fit_volumes(self.x, self.psi, rest_lattice,
-                                                    self.h / 2.0 if spacing is None else spacing, self.h)
+            # static walls only: moving walls and bodies keep Akinci's volumes (the fit lightens walls,
+            # and a lightened body let a sinking 2000 kg/m^3 sphere fill with fluid, method.md section 9)
+            fixed = slice(None) if self.groups is None else np.flatnonzero(self.groups == 0)
+            psi_fit, self.fit_report = fit_volumes(np.ascontiguousarray(self.x[fixed]), self.psi[fixed],
+                                                   rest_lattice, self.h / 2.0 if spacing is None else spacing, self.h)
+            if self.groups is None:
+                self.psi = psi_fit
+            else:
+                self.psi[fixed] = psi_fit
         self.m = self.rho0 * self.psi
 
     @property
@@ -205,12 +221,22 @@ class Boundary:
         return len(self.x)
 
     def _volumes(self) -> np.ndarray:
-        n = len(self.x)
+        if self.groups is not None:
+            psi = np.zeros(len(self.x))
+            for k in np.unique(self.groups):
+                sel = np.flatnonzero(self.groups == k)
+                psi[sel] = self._group_volumes(self.x[sel])
+            return psi
+        return self._group_volumes(self.x)
+
+    def _group_volumes(self, x: np.ndarray) -> np.ndarray:
+        n = len(x)
         psi = np.zeros(n)
         if n == 0:
             return psi
-        order, nbr, cnt = radius_lists(self.x, self.x, self.h)
-        xs = np.ascontiguousarray(self.x[order])
+        x = np.ascontiguousarray(x)
+        order, nbr, cnt = radius_lists(x, x, self.h)
+        xs = np.ascontiguousarray(x[order])
         psi_sorted = np.zeros(n)
         akinci_volumes(xs, nbr, cnt, self.h, psi_sorted)
         psi[order] = psi_sorted
@@ -219,17 +245,30 @@ class Boundary:
     def state_dict(self) -> dict[str, np.ndarray]:
         """Positions, volumes and masses in their current (cell-sorted) order: the volumes were
         summed in the original order, so a continuation takes them as they are."""
-        return {"x": self.x.copy(), "psi": self.psi.copy(), "m": self.m.copy()}
+        d = {"x": self.x.copy(), "psi": self.psi.copy(), "m": self.m.copy()}
+        if self.moving:
+            d.update(v=self.v.copy(), groups=self.groups.copy(), x0=self.x0.copy())
+        return d
 
     def load_state_dict(self, d: dict[str, np.ndarray]) -> None:
         if len(d["x"]) != len(self.x):
             raise ValueError(f"saved boundary has {len(d['x'])} particles, this scene {len(self.x)}")
-        self.x = np.ascontiguousarray(d["x"], dtype=np.float64)
+        self.x = np.array(d["x"], dtype=np.float64)   # a copy: moving walls write into it
         self.psi = np.ascontiguousarray(d["psi"], dtype=np.float64)
         self.m = np.ascontiguousarray(d["m"], dtype=np.float64)
+        if self.moving:
+            self.v = np.ascontiguousarray(d["v"], dtype=np.float64)
+            self.groups = np.ascontiguousarray(d["groups"], dtype=np.int32)
+            self.x0 = np.ascontiguousarray(d["x0"], dtype=np.float64)
+        else:
+            self.v = np.zeros_like(self.x)
 
     def reorder(self, order: np.ndarray) -> None:
         """Follow the neighbour search's boundary sort (new[i] = old[order[i]])."""
         self.x = np.ascontiguousarray(self.x[order])
         self.psi = np.ascontiguousarray(self.psi[order])
         self.m = np.ascontiguousarray(self.m[order])
+        self.v = np.ascontiguousarray(self.v[order])
+        if self.groups is not None:
+            self.groups = np.ascontiguousarray(self.groups[order])
+            self.x0 = np.ascontiguousarray(self.x0[order])

@@ -79,6 +79,7 @@ def save(path: Path, sim, *, frames: int, last_frame_time: float | None, solver_
     sd = sim.state_dict()
     data = {f"state.{k}": v for k, v in sd["particles"].items()}
     data.update({f"boundary.{k}": v for k, v in sd["boundary"].items()})
+    data.update({f"walls.{k}": v for k, v in sd.get("walls", {}).items()})   # moving walls (ipsph.rigid)
     search, clock = sd["search"], sd["clock"]
     if search["grid"] is not None:
         data.update({f"grid.{k}": v for k, v in search["grid"].items()})
@@ -162,7 +163,8 @@ def state_dict(ck: Checkpoint) -> dict:
             "method": {"dt_prev": s["dt_prev"]},
             "clock": {"time": s["time"], "steps": s["steps"], "clamped_steps": s["clamped_steps"],
                       "dt_next": s["dt_next"], "next_clamped": s.get("next_clamped", False)},
-            **({"flow": s["flow"]} if s.get("flow") else {})}
+            **({"flow": s["flow"]} if s.get("flow") else {}),
+            **({"walls": part("walls.")} if part("walls.") else {})}
 
 
 def restore(scene: Scene, ck: Checkpoint):

@@ -50,9 +50,49 @@ class FluidSpec(Body):
 
 
 @dataclass(frozen=True)
+class Keyframe:
+    """One keyframe of a wall's motion: its offset from the placement at `time`."""
+    time: float
+    translate: Vec3 = (0.0, 0.0, 0.0)
+    rotate_axis: Vec3 = (0.0, 1.0, 0.0)
+    rotate_deg: float = 0.0
+
+
+@dataclass(frozen=True)
+class MotionSpec:
+    """[boundary.motion]: a prescribed (kinematic) motion, evaluated by ipsph.motion."""
+    type: str = D("boundary.motion.type")
+    velocity: Vec3 = D("boundary.motion.velocity")
+    angular_velocity: Vec3 = D("boundary.motion.angular_velocity")   # deg/s
+    pivot: Vec3 | None = D("boundary.motion.pivot")
+    axis: Vec3 = D("boundary.motion.axis")
+    amplitude: float = D("boundary.motion.amplitude")
+    angle_amplitude: float = D("boundary.motion.angle_amplitude")   # deg
+    period: float | None = D("boundary.motion.period")
+    phase_deg: float = D("boundary.motion.phase_deg")
+    keyframes: tuple[Keyframe, ...] = ()
+
+
+@dataclass(frozen=True)
 class BoundarySpec(Body):
-    """A static wall ([[boundary]]): a container (fluid inside) or an obstacle (fluid around)."""
+    """A wall ([[boundary]]): a container (fluid inside) or an obstacle (fluid around); static,
+    moving as prescribed (`motion`), or a dynamic rigid body (`density` or `mass` set)."""
     role: Role = Role(D("boundary.role"))
+    motion: MotionSpec = MotionSpec()
+    density: float | None = D("boundary.density")
+    mass: float | None = D("boundary.mass")
+    velocity: Vec3 = D("boundary.velocity")
+    angular_velocity: Vec3 = D("boundary.angular_velocity")   # deg/s
+
+    @property
+    def dynamic(self) -> bool:
+        """A rigid body the fluid pushes (a density or a mass was given)."""
+        return self.density is not None or self.mass is not None
+
+    @property
+    def moving(self) -> bool:
+        """Not a static wall: a prescribed motion or a dynamic body."""
+        return self.dynamic or self.motion.type != "static"
 
 
 @dataclass(frozen=True)

@@ -182,6 +182,24 @@ class NeighbourSearch:
         near = near_cells(boundary_start, g.dims, reach)
         self.wall_start, self.wall_cand = wall_candidates(self.boundary.x, boundary_start, g, self.h, near)
 
+    def _resort_walls(self, x_fluid) -> None:
+        """Moving walls: sort the walls into the grid again at their new positions (refitting the
+        grid if they left it) and rebuild the per-cell candidates. Every step, so its cost is the
+        price of a moving wall (`ipsph bench --moving`)."""
+        xb = self.boundary.x
+        lo, hi = bounds(xb) if len(xb) else (np.zeros(3), np.zeros(3))
+        if not self.grid.contains(lo, hi):
+            self.grid = None
+            self._fit_grid(x_fluid)   # a grid over fluid and walls, the walls sorted into it
+            return
+        g = self.grid
+        cells = np.empty(len(xb), dtype=np.int64)
+        cell_ids(xb, g.origin, g.inv_cell, g.dims, cells)
+        order = np.empty(len(xb), dtype=np.int64)
+        start = counting_sort(cells, g.n_cells, order)
+        self.boundary.reorder(order)
+        self.use_boundary_sort(start)
+
     # -- state ------------------------------------------------------------------------------
     def state_dict(self) -> dict:
         """What a continuation needs to see the same neighbour order: the grid and the strides
@@ -219,6 +237,8 @@ class NeighbourSearch:
         permuted order: new[i] = old[perm[i]]).
         """
         self._fit_grid(x_fluid)
+        if getattr(self.boundary, "moving", False):
+            self._resort_walls(x_fluid)
         g = self.grid
         n = len(x_fluid)
         if self._sort is None or len(self._sort[0]) != n or len(self._sort[1]) != g.n_cells + 2:

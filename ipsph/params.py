@@ -50,6 +50,7 @@ PHASES = {
 }
 
 BOUNDARY_ROLES = ("container", "obstacle")  # boundary.role: fluid inside the surface, or around it
+MOTION_TYPES = ("static", "constant", "sinusoid", "keyframes")  # boundary.motion.type (ipsph/motion.py)
 OUTPUT_FIELDS = ("velocity", "density", "pressure", "mass", "id")
 # render.view: direction from the focal point to the camera, and the view-up vector (y is up)
 RENDER_VIEWS: dict[str, tuple[tuple[float, float, float], tuple[float, float, float]]] = {
@@ -67,7 +68,7 @@ class Param:
     """One scene parameter.
 
     path: dotted key path in the file (`fluid.velocity` is `velocity` in each [[fluid]] table).
-    kind: float | int | bool | choice | path | vec3 | range2 | fields.
+    kind: float | int | bool | choice | path | vec3 | range2 | fields | keyframes.
     target: where the value lands in the model: `time_step.dt_max` (Scene.time_step.dt_max),
       `particle_radius` (Scene.particle_radius); for fluid/boundary keys, the FluidSpec /
       BoundarySpec attribute (`transform.translate`). Empty: no direct model field.
@@ -165,7 +166,8 @@ PARAMS: tuple[Param, ...] = (
        "section 1): a block that starts against walls has no corner pop (the tank at rest: 1 m/s "
        "instead of 27 m/s). Walls get up to 34 % lighter, so fast impacts come closer: the default "
        "dam break with PF and a coarse IPSPH dam break went through a wall with it. For scenes "
-       "that start at rest.", "fit_wall_volumes"),
+       "that start at rest. Only static walls are fitted: moving walls and rigid bodies keep Akinci's "
+       "volumes.", "fit_wall_volumes"),
     # -- [time_step] ----------------------------------------------------------------------------
     _P("time_step.cfl_factor", "float", 1.0, "", "CFL factor lambda in "
        "dt = lambda * 0.4 * d / max|v|.", lo=0.0, hi=2.5, lo_open=True),
@@ -290,6 +292,47 @@ PARAMS: tuple[Param, ...] = (
     _P("boundary.mesh", "path", None, "", "Mesh wall: closed surface mesh file, relative to "
        "the scene file. Give box or mesh, not both.", "mesh"),
     *_transform("boundary"),
+    # -- [[boundary]] motion and rigid bodies (ipsph/motion.py, ipsph/rigid.py; method.md section 9) ----
+    _P("boundary.motion.type", "choice", "static", "", "Prescribed motion of the wall (a kinematic "
+       "wall: it pushes the fluid, the fluid does not push it): static, constant (velocity and "
+       "angular_velocity), sinusoid (a paddle or piston: amplitude along axis and/or angle_amplitude "
+       "about axis, with period and phase_deg) or keyframes. The scene places the wall at t = 0; "
+       "every motion is an offset from there.", "motion.type", choices=MOTION_TYPES),
+    _P("boundary.motion.velocity", "vec3", _Z3, "m/s", "constant: linear velocity.",
+       "motion.velocity", lo=-1e3, hi=1e3),
+    _P("boundary.motion.angular_velocity", "vec3", _Z3, "deg/s", "constant: angular velocity "
+       "about pivot (the vector's direction is the axis, right-handed).", "motion.angular_velocity",
+       lo=-1e5, hi=1e5),
+    _P("boundary.motion.pivot", "vec3", None, "m", "Centre of rotation at t = 0 (it moves with "
+       "the wall). auto: the centre of the wall's bounding box.", "motion.pivot", optional=True),
+    _P("boundary.motion.axis", "vec3", (1.0, 0.0, 0.0), "", "sinusoid: direction of the "
+       "displacement and axis of the rotation (normalised).", "motion.axis"),
+    _P("boundary.motion.amplitude", "float", 0.0, "m", "sinusoid: displacement amplitude A: the "
+       "wall moves by A (sin(2 pi t / period + phase) - sin(phase)) along axis.",
+       "motion.amplitude", lo=0.0, hi=1e3),
+    _P("boundary.motion.angle_amplitude", "float", 0.0, "deg", "sinusoid: rotation amplitude "
+       "about axis through pivot (a flap paddle), with the same time dependence.",
+       "motion.angle_amplitude", lo=0.0, hi=180.0),
+    _P("boundary.motion.period", "float", None, "s", "sinusoid: period (required, > 0).",
+       "motion.period", lo=0.0, hi=1e6, lo_open=True, optional=True),
+    _P("boundary.motion.phase_deg", "float", 0.0, "deg", "sinusoid: phase; -90 starts at rest "
+       "at one end of the stroke (no jerk at t = 0), 0 starts at full speed.", "motion.phase_deg",
+       lo=-360.0, hi=360.0),
+    _P("boundary.motion.keyframes", "keyframes", (), "", "keyframes: an array of tables "
+       "{time, translate = [x, y, z], rotate_axis = [x, y, z], rotate_deg} with strictly "
+       "increasing times: the wall's offset from its placement, interpolated by Catmull-Rom "
+       "cubic Hermite splines (translation) and slerp (rotation about pivot); held before the "
+       "first and after the last keyframe.", "motion.keyframes"),
+    _P("boundary.density", "float", None, "kg/m^3", "Makes the wall a dynamic rigid body "
+       "(role obstacle, a closed surface) of this density: the fluid pushes it and it pushes "
+       "back, under gravity, with contacts (method.md section 9). auto: not a body.", "density",
+       lo=0.0, hi=1e6, lo_open=True, optional=True),
+    _P("boundary.mass", "float", None, "kg", "A dynamic body's mass instead of density (give "
+       "one of them). auto: from density.", "mass", lo=0.0, hi=1e9, lo_open=True, optional=True),
+    _P("boundary.velocity", "vec3", _Z3, "m/s", "A dynamic body's initial velocity.", "velocity",
+       lo=-1e3, hi=1e3),
+    _P("boundary.angular_velocity", "vec3", _Z3, "deg/s", "A dynamic body's initial angular "
+       "velocity.", "angular_velocity", lo=-1e5, hi=1e5),
 )
 
 # -- [[emitter]], [[sink]], [domain]: fluid entering and leaving (ipsph.emitters) ---------------
@@ -348,8 +391,10 @@ SECTION_DOCS = {
                "splashsurf (docs/output-format.md). Lengths are in particle radii r.",
     "fluid": "One [[fluid]] table per fluid body: `box = {min = [..], max = [..]}` or "
              "`mesh = \"file.obj\"`. `fluid[0]` in messages is the first [[fluid]] table.",
-    "boundary": "One [[boundary]] table per static wall (Akinci boundary particles on its "
-                "surface): a box or a closed mesh, as a container or an obstacle.",
+    "boundary": "One [[boundary]] table per wall (Akinci boundary particles on its "
+                "surface): a box or a closed mesh, as a container or an obstacle. A wall is static, "
+                "moves as prescribed (`motion = {type = \"sinusoid\", ...}`: a kinematic wall) or, "
+                "with a density or mass, is a dynamic rigid body two-way coupled to the fluid.",
     "domain": "Optional box outside which fluid is removed (docs/output-format.md: particle counts vary).",
     "emitter": "One [[emitter]] table per nozzle emitting fluid layers at a velocity from start_time "
                "to end_time (SPlisHSPlasH's Emitters). Its position must lie inside a container's "

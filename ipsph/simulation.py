@@ -69,6 +69,10 @@ def sample_scene(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray, list
     if len(scene.boundaries) and len(fluid_x):
         kept, removed = sampling.remove_overlaps(fluid_x, boundary_x, sampling.default_overlap_distance(r),
                                                  boundaries=scene.boundaries, radius=r)
+        if any(spec.dynamic for spec in scene.boundaries):   # a wider gap around rigid bodies (rigid.BODY_GAP_D)
+            from .rigid import body_gap_mask
+            kept &= body_gap_mask(fluid_x, scene, walls, r)
+            removed = int(len(fluid_x) - kept.sum())
         if removed:
             notes.append(f"{removed} of {len(fluid_x)} fluid particles overlapped a wall or lay outside the "
                          f"containers and were removed")
@@ -77,6 +81,18 @@ def sample_scene(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray, list
         from .emitters import wall_notes
         notes += wall_notes(scene, boundary_x)
     return np.ascontiguousarray(fluid_x), np.ascontiguousarray(fluid_v), np.ascontiguousarray(boundary_x), notes
+
+
+def _wall_groups(scene: Scene, n_walls: int) -> np.ndarray | None:
+    """Per wall particle, which moving wall it belongs to (rigid.boundary_groups; None: all static)."""
+    if not any(b.moving for b in scene.boundaries):
+        return None
+    from .rigid import boundary_groups
+    from .sampling import boundary_positions
+    counts = [len(boundary_positions(spec, scene.particle_radius)) for spec in scene.boundaries]
+    if sum(counts) != n_walls:
+        raise ValueError(f"{n_walls} wall particles given, the scene's walls sample {sum(counts)}")
+    return boundary_groups(scene, counts)
 
 
 def _host(array_of, doc: str) -> property:
@@ -109,9 +125,15 @@ class Simulation:
         self.state = ParticleState(fluid_x, fluid_v, np.full(len(fluid_x), mass), fluid_ids, self.be, capacity)
         from .sampling import rest_lattice
         lattice = rest_lattice(scene, boundary_x) if scene.fit_wall_volumes else None
-        self.boundary = Boundary(boundary_x, self.support, scene.density0, lattice, self.spacing)
+        groups = _wall_groups(scene, len(boundary_x))
+        self.boundary = Boundary(boundary_x, self.support, scene.density0, lattice, self.spacing, groups)
+        self.walls = None   # moving walls and rigid bodies (ipsph.rigid)
+        if groups is not None:
+            from .rigid import WallDriver
+            self.walls = WallDriver(scene, self.boundary, self.support, mass)
         self.search = self.be.neighbour_search(self.support, self.boundary)
         self.method = METHODS[scene.method](scene, self.state, self.boundary, self.search, self.be, mass)
+        self.method.walls = self.walls
         self.time = 0.0
         self.steps = 0
         self.clamped_steps = 0
@@ -121,7 +143,7 @@ class Simulation:
         self.domain = self._domain(boundary_x)
         self.method.prepare()
         vmax, _ = self.be.speed_energy(self.state.v, self.state.m)
-        self.dt_next, self._clamped = self._cfl(vmax)
+        self.dt_next, self._clamped = self._cfl(self._wall_speed(vmax))
         if ts.dt_initial is not None:
             self.dt_next = min(ts.dt_initial, self.dt_max, max(self._viscous_dt(), self.dt_min))
 
@@ -163,6 +185,8 @@ class Simulation:
         """Advance one step of `dt` (default: the CFL step) and check the state's health."""
         dt = self.dt_next if dt is None else float(dt)
         t0 = time.perf_counter()
+        if self.walls is not None:
+            self.walls.t = self.time
         try:
             rep = self.method.step(dt)
         except NumericalFailure as exc:  # raised inside the step (e.g. the neighbour grid blew up)
@@ -181,13 +205,20 @@ class Simulation:
         vmax, ke = self.be.speed_energy(st.v, st.m)
         clamped = self._clamped  # this step's CFL value fell below dt_min
         self.clamped_steps += clamped
-        self.dt_next, self._clamped = self._cfl(vmax)
+        self.dt_next, self._clamped = self._cfl(self._wall_speed(vmax))
         self.be.synchronize()
         rep.timings["step"] = time.perf_counter() - t0
         return StepStats(**vars(rep), step=self.steps, time=self.time, max_speed=vmax, kinetic_energy=ke,
                          dt_clamped=clamped, emitted=emitted, removed=removed)
 
+    def _wall_speed(self, vmax: float) -> float:
+        """The CFL speed: the fluid's, or a moving wall's if faster (a body never moves more than
+        the CFL fraction of d per step, so it cannot tunnel through a wall layer)."""
+        return vmax if self.walls is None else max(vmax, self.walls.max_speed())
+
     def _first_unhealthy(self) -> int:
+        if self.walls is not None and len(self.boundary.x):   # the containers may move
+            self.domain = self._domain(self.boundary.x)
         return self.be.first_unhealthy(self.state.x, self.state.v, self.domain[0], self.domain[1])
 
     def _fail(self, i: int, inner: str | None = None):
@@ -266,6 +297,7 @@ class Simulation:
         do not change it)."""
         return {"particles": self.state.state_dict(), "boundary": self.boundary.state_dict(),
                 "search": self.search.state_dict(), "method": self.method.state_dict(),
+                **({"walls": self.walls.state_dict()} if self.walls is not None else {}),
                 "clock": {"time": self.time, "steps": self.steps, "clamped_steps": int(self.clamped_steps),
                           "dt_next": self.dt_next, "next_clamped": bool(self._clamped)},
                 **({"flow": self.flow.state_dict()} if self.flow else {})}
@@ -286,6 +318,8 @@ class Simulation:
             self.flow.load_state_dict(d["flow"])
         self.method.resize(self.state.n)
         self.method.load_state_dict(d["method"])
+        if self.walls is not None:
+            self.walls.load_state_dict(d["walls"])
         self.method.prepare()
 
     # -- particle arrays, on the host (current order; `ids` maps them to the initial numbering) --

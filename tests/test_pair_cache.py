@@ -49,7 +49,7 @@ def _filled(sim, by):
         density_factor_lambda(st.x, fl.mf, b.x, b.m, nf, cf, nl.boundary, nl.boundary_count, fl.h, fl.rho0, d.rho,
                               d.alpha, d.lam, d.err, d.n_nbrs, d.gb, cache)
     else:
-        xsph(st.x, st.v, fl.mf, d.rho, d.gb, d.lam, nf, cf, fl.h, 0.01, 0.0, np.empty((n, 3)), np.empty(n),
+        xsph(st.x, st.v, fl.mf, d.rho, d.gb, d.gvb, d.lam, nf, cf, fl.h, 0.01, 0.0, np.empty((n, 3)), np.empty(n),
              NO_DISPLACEMENT, cache)
     return cache
 
@@ -81,8 +81,8 @@ def test_cached_passes_equal_the_uncached_ones(splashing, by):
     for name, pg in (("cached", cache), ("uncached", NO_PAIR_CACHE)):
         v, kt, drho, kk, err = st.v.copy(), np.zeros(n), np.empty(n), np.empty(n), np.empty(n)
         apply_stiffness(st.x, fl.mf, d.gb, nf, cf, pg, fl.h, k, dt, v, kt)
-        divergence_residual(st.x, v, fl.mf, d.gb, nf, cf, pg, fl.h, d.alpha, d.n_nbrs, dt, drho, kk)
-        density_residual(st.x, v, fl.mf, d.gb, nf, cf, pg, fl.h, d.rho, d.alpha, fl.rho0, dt, err, kk)
+        divergence_residual(st.x, v, fl.mf, d.gb, d.gvb, nf, cf, pg, fl.h, d.alpha, d.n_nbrs, dt, drho, kk)
+        density_residual(st.x, v, fl.mf, d.gb, d.gvb, nf, cf, pg, fl.h, d.rho, d.alpha, fl.rho0, dt, err, kk)
         out[name] = v, drho, err
     for a, b in zip(out["cached"], out["uncached"]):
         assert np.abs(a - b).max() <= PASS_RTOL * np.abs(b).max()

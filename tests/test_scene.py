@@ -89,7 +89,7 @@ def test_docs_reference_is_generated_and_current():
     assert doc == reference_markdown(), \
         "docs/scene-reference.md is stale: run `python -m ipsph.scene > docs/scene-reference.md`"
     for p in PARAMS:
-        assert f"`{p.key}`" in doc or f"`box.{p.key}`" in doc
+        assert f"`{p.key}`" in doc or f"`box.{p.key}`" in doc or f"`motion.{p.key}`" in doc
         assert p.doc.replace("|", "\\|") in doc
     assert "Importing SPlisHSPlasH scenes" in doc
 

@@ -142,8 +142,10 @@ def test_json_syntax_error_has_line_and_column(tmp_path):
     ({"Configuration": {"simulationMethod": 2}, "FluidBlocks": [BLOCK]},
      "Configuration.simulationMethod: 2 (PBF) is not supported"),
     ({"FluidBlocks": [{**BLOCK, "denseMode": 1}]}, "FluidBlocks[0].denseMode: 1 is not supported"),
-    ({"FluidBlocks": [BLOCK], "RigidBodies": [{"geometryFile": "box.obj", "isDynamic": True}]},
-     "RigidBodies[0].isDynamic: dynamic rigid bodies are not supported"),
+    ({"FluidBlocks": [BLOCK], "RigidBodies": [{"geometryFile": "box.obj", "isDynamic": True, "isWall": True}]},
+     "RigidBodies[0].isDynamic: a dynamic body cannot be a wall"),
+    ({"FluidBlocks": [BLOCK], "RigidBodies": [{"geometryFile": "box.obj", "isDynamic": True, "density": 0}]},
+     "RigidBodies[0].density: 0: a dynamic body needs a density > 0"),
     ({"FluidBlocks": [BLOCK], "Emitters": [{"type": 2}]}, "Emitters[0].type: 2 is not an emitter type"),
     ({"FluidModels": [{"particleFile": "bunny.bgeo"}]}, "is a partio particle file"),
     ({"Configuration": {"particleRadius": "small"}, "FluidBlocks": [BLOCK]},
@@ -208,3 +210,25 @@ def test_standard_viscosity_is_imported_as_the_same_model(tmp_path):
     data["Materials"] = [{"id": "Fluid", "viscosityMethod": 3, "viscosity": 0.02}]
     s = load_scene(scene_file(tmp_path, data, "b.json"))
     assert (s.standard_viscosity, s.viscosity) == (0.0, 0.02)
+
+
+CLOSED_CUBE = "".join(f"v {x} {y} {z}\n" for z in (0, 1) for y in (0, 1) for x in (0, 1)) + "".join(
+    f"f {a + 1} {b + 1} {c + 1}\n" for q in ((0, 2, 3, 1), (4, 5, 7, 6), (0, 1, 5, 4), (2, 6, 7, 3), (0, 4, 6, 2),
+                                            (1, 3, 7, 5)) for a, b, c in ((q[0], q[1], q[2]), (q[0], q[2], q[3])))
+
+
+def test_dynamic_rigid_body_is_imported_with_its_density(tmp_path):
+    """isDynamic bodies become two-way coupled rigid bodies (issue 19) of the scene's density, or
+    SPlisHSPlasH's default 1000 kg/m^3 with a note; the mesh is the body's closed surface."""
+    data = {"FluidBlocks": [BLOCK],
+            "RigidBodies": [{"geometryFile": "box.obj", "isDynamic": True, "density": 400},
+                            {"geometryFile": "box.obj", "isDynamic": True, "translation": [2, 0, 0]},
+                            {"geometryFile": "box.obj", "isWall": True, "scale": [4, 4, 4]}]}
+    path = scene_file(tmp_path, data)
+    (tmp_path / "box.obj").write_text(CLOSED_CUBE)   # a dynamic body's mesh is checked closed
+    s = load_scene(path)
+    light, default, tank = s.boundaries
+    assert light.dynamic and light.density == 400.0 and light.role == Role.OBSTACLE
+    assert default.dynamic and default.density == 1000.0
+    assert not tank.dynamic and not tank.moving
+    assert "no density given, SPlisHSPlasH's default 1000 kg/m^3 used" in s.warnings[0]

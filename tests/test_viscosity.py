@@ -49,7 +49,7 @@ def lattice_block(n1, support_in_d):
 def viscous_change(block, v, zeta=0.0, nu=NU):
     x, mf, rho, gb, lam, nf, cf, h, _ = block
     out = np.empty_like(v)
-    xsph(x, v, mf, rho, gb, lam, nf, cf, h, zeta, nu * DT, out, np.empty(len(x)), NO_DISPLACEMENT,
+    xsph(x, v, mf, rho, gb, np.zeros(len(x)), lam, nf, cf, h, zeta, nu * DT, out, np.empty(len(x)), NO_DISPLACEMENT,
          NO_PAIR_CACHE)
     return out - v
 

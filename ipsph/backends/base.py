@@ -25,18 +25,20 @@ class Densities:
     """What the density pass leaves at one set of positions (method.md section 1): density rho,
     DFSPH factor alpha, PF multiplier lam, density error err = max(rho/rho0 - 1, 0), neighbour
     count n_nbrs, and the walls' gradient sum gb_i = sum_b m_b grad W_ib that every later pass
-    at the same positions takes the walls from."""
+    at the same positions takes the walls from; gvb_i = sum_b m_b v_b . grad W_ib, the moving
+    walls' part of D rho_i/Dt (`wall_rate`; stays 0 with static walls)."""
     rho: Array
     alpha: Array
     lam: Array
     err: Array
     n_nbrs: Array
     gb: Array
+    gvb: Array
 
     @classmethod
     def allocate(cls, be: "Backend", n: int) -> "Densities":
         return cls(be.zeros(n), be.zeros(n), be.zeros(n), be.zeros(n), be.zeros(n, dtype="int32"),
-                   be.zeros(n, (3,)))
+                   be.zeros(n, (3,)), be.zeros(n))
 
     def arrays(self) -> tuple:
         return tuple(getattr(self, f.name) for f in fields(self))
@@ -81,6 +83,7 @@ class Backend:
     def viscosity(self, x, v, mf, dens, lam, nl, h, zeta, nu_dt, v_out, drho, disp, pairs) -> Array:
         raise NotImplementedError
     def pf_global(self, x, s, mf, dens, nl, h, rho0, a, x_out, lam_sum) -> None: raise NotImplementedError
+    def wall_rate(self, x, walls, nl, h, dens) -> None: raise NotImplementedError  # dens.gvb (walls.v: moving walls)
     def advance(self, x, v, dt, g, x_old) -> None: raise NotImplementedError
     def displacement_velocity(self, x, x_old, dt, v) -> None: raise NotImplementedError
     def accelerate(self, v, dt, g) -> None: raise NotImplementedError

@@ -30,7 +30,7 @@ FAST = {"contract", "arcp", "reassoc"}  # no nnan/ninf: NaN checks keep working
 DX, DY, DZ, C0, C1, C2, C3, C4, C5 = 0, 1, 2, 3, 4, 5, 6, 7, 8
 
 # rows of scratch each body needs per neighbour slot (the launcher allocates them)
-DENSITY_ROWS, RATE_ROWS, STIFFNESS_ROWS, VISCOSITY_ROWS, PF_GLOBAL_ROWS = 6, 7, 4, 9, 4
+DENSITY_ROWS, RATE_ROWS, STIFFNESS_ROWS, VISCOSITY_ROWS, PF_GLOBAL_ROWS, WALL_RATE_ROWS = 6, 7, 4, 9, 4, 4
 
 
 # -- gathers -------------------------------------------------------------------------------------
@@ -197,13 +197,15 @@ def density_at(i, x, mf, xb, mb, nf, cf, nb, cb, h, rho0, w0, fill, buf, rho, al
 
 
 @njit(inline="always", fastmath=FAST)
-def density_rate_at(i, x, v, mf, gb, nf, cf, pair_grad, cached, h, buf):
-    """D rho_i / Dt = sum_j mf (v_i - v_j) . grad W_ij + v_i . gb_i   [BK17 eq. 4; gb: density_at].
+def density_rate_at(i, x, v, mf, gb, gvb, nf, cf, pair_grad, cached, h, buf):
+    """D rho_i / Dt = sum_j mf (v_i - v_j) . grad W_ij + sum_b m_b (v_i - v_b) . grad W_ib
+                    = sum_j mf (v_i - v_j) . grad W_ij + v_i . gb_i - gvb_i
+    [BK17 eq. 4; gb: density_at; gvb_i = sum_b m_b v_b . grad W_ib: wall_rate_at, 0 for static walls].
 
     From the pair cache when `cached`, else from the positions."""
     n_f = cf[i]
     _gather_rate_f(i, v, nf, n_f, buf)
-    walls = v[i, 0] * gb[i, 0] + v[i, 1] * gb[i, 1] + v[i, 2] * gb[i, 2]
+    walls = v[i, 0] * gb[i, 0] + v[i, 1] * gb[i, 1] + v[i, 2] * gb[i, 2] - gvb[i]
     rate = 0.0
     if cached:
         g = pair_grad[i]
@@ -219,21 +221,21 @@ def density_rate_at(i, x, v, mf, gb, nf, cf, pair_grad, cached, h, buf):
 
 
 @njit(inline="always", fastmath=FAST)
-def divergence_residual_at(i, x, v, mf, gb, nf, cf, pair_grad, cached, h, alpha, n_nbrs, dt, buf, drho, k):
+def divergence_residual_at(i, x, v, mf, gb, gvb, nf, cf, pair_grad, cached, h, alpha, n_nbrs, dt, buf, drho, k):
     """Divergence-solve residual and stiffness [BK17 Alg. 2]:
     drho_i = max(D rho_i/Dt, 0), zero for particles with < 20 neighbours; k_i = alpha_i drho_i / dt."""
     d = 0.0
     if n_nbrs[i] >= 20:
-        d = max(density_rate_at(i, x, v, mf, gb, nf, cf, pair_grad, cached, h, buf), 0.0)
+        d = max(density_rate_at(i, x, v, mf, gb, gvb, nf, cf, pair_grad, cached, h, buf), 0.0)
     drho[i] = d
     k[i] = alpha[i] * d / dt
 
 
 @njit(inline="always", fastmath=FAST)
-def density_residual_at(i, x, v, mf, gb, nf, cf, pair_grad, cached, h, rho, alpha, rho0, dt, buf, rho_err, k):
+def density_residual_at(i, x, v, mf, gb, gvb, nf, cf, pair_grad, cached, h, rho, alpha, rho0, dt, buf, rho_err, k):
     """Density-solve residual and stiffness [BK17 Alg. 3]:
     rho*_i = max(rho_i + dt D rho_i/Dt, rho0);  rho_err_i = rho*_i - rho0;  k_i = alpha_i rho_err_i / dt^2."""
-    rate = density_rate_at(i, x, v, mf, gb, nf, cf, pair_grad, cached, h, buf)
+    rate = density_rate_at(i, x, v, mf, gb, gvb, nf, cf, pair_grad, cached, h, buf)
     e = max(rho[i] + dt * rate, rho0) - rho0
     rho_err[i] = e
     k[i] = alpha[i] * e / (dt * dt)
@@ -270,7 +272,7 @@ def stiffness_at(i, x, mf, gb, nf, cf, pair_grad, cached, h, k, dt, buf, v, k_to
 
 
 @njit(inline="always", fastmath=FAST)
-def viscosity_at(i, x, v, mf, rho, gb, lam, nf, cf, h, zeta, nu_dt, eps, standard, with_disp, fill, buf,
+def viscosity_at(i, x, v, mf, rho, gb, gvb, lam, nf, cf, h, zeta, nu_dt, eps, standard, with_disp, fill, buf,
                  v_out, drho, disp, pair_grad):
     """The viscosity pass for particle i: XSPH filter [SB12] and SPlisHSPlasH's "Standard"
     viscosity, explicit:
@@ -281,7 +283,7 @@ def viscosity_at(i, x, v, mf, rho, gb, lam, nf, cf, h, zeta, nu_dt, eps, standar
     (Monaghan 2005's SPH Laplacian with the 2 (d + 2) = 10 of 3D, as SPlisHSPlasH's
     Viscosity_Standard without its wall term; nu_dt = nu dt, eps = 0.01 H^2). Walls take no part.
     By-products of the same neighbour loop:
-        drho_i = D rho_i/Dt of the input velocities (walls through gb_i);
+        drho_i = D rho_i/Dt of the input velocities (walls through gb_i and gvb_i);
         disp_i = sum_j mf (lam_i + lam_j) grad W_ij + lam_i gb_i, with `with_disp`: rho0 times
                  the PF displacement of the multipliers lam (IPSPH's next warm start);
         pair_grad[i, :, k] = mf grad W_ij, with `fill`.
@@ -301,7 +303,7 @@ def viscosity_at(i, x, v, mf, rho, gb, lam, nf, cf, h, zeta, nu_dt, eps, standar
     else:
         a0, a1, a2, s0, s1, s2, p0, p1, p2, dr = _viscosity_sums(i, n_f, buf, h, eps, mf, standard,
                                                                  False, pair_grad)
-    drho[i] = mf * dr + vi0 * gb[i, 0] + vi1 * gb[i, 1] + vi2 * gb[i, 2]
+    drho[i] = mf * dr + vi0 * gb[i, 0] + vi1 * gb[i, 1] + vi2 * gb[i, 2] - gvb[i]
     zm = zeta * mf
     nm = 10.0 * nu_dt * mf
     v_out[i, 0] = vi0 - zm * a0 + nm * s0
@@ -336,3 +338,20 @@ def pf_global_at(k, x, s, mf, gb, nf, cf, h, rho0, lam, a, buf, x_out, lam_sum):
     x_out[k, 1] = (mf * s[k, 1] + an * (x[k, 1] + (mf * d1 + lk * gb[k, 1]) / rho0)) * inv
     x_out[k, 2] = (mf * s[k, 2] + an * (x[k, 2] + (mf * d2 + lk * gb[k, 2]) / rho0)) * inv
     lam_sum[k] = an * inv * (lam_sum[k] + lk)
+
+
+@njit(inline="always", fastmath=FAST)
+def wall_rate_at(i, x, xb, mb, vb, nb, cb, h, buf, gvb):
+    """The moving walls' part of D rho_i/Dt: gvb_i = sum_b m_b v_b . grad W_ib (v_b the wall
+    particles' velocities; density_rate_at subtracts it). Only run when walls move: static walls
+    leave gvb = 0, so their scenes compute exactly what they did before walls could move."""
+    n_b = cb[i]
+    _gather_diff(i, x, xb, nb, n_b, buf, DX, 0)
+    for k in range(n_b):
+        b = nb[i, k]
+        buf[C0, k] = mb[b] * (vb[b, 0] * buf[DX, k] + vb[b, 1] * buf[DY, k] + vb[b, 2] * buf[DZ, k])
+    s = 0.0
+    for k in range(n_b):
+        d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
+        s += buf[C0, k] * grad_w_factor(math.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
+    gvb[i] = s

@@ -92,19 +92,22 @@ class CPUBackend(Backend):
         return pairs
 
     def divergence_residual(self, x, v, mf, dens, nl, pairs, h, dt, drho, k):
-        P.divergence_residual(x, v, mf, dens.gb, nl.fluid, nl.fluid_count, pairs, h, dens.alpha, dens.n_nbrs, dt,
+        P.divergence_residual(x, v, mf, dens.gb, dens.gvb, nl.fluid, nl.fluid_count, pairs, h, dens.alpha, dens.n_nbrs, dt,
                               drho, k)
 
     def density_residual(self, x, v, mf, dens, nl, pairs, h, rho0, dt, err, k):
-        P.density_residual(x, v, mf, dens.gb, nl.fluid, nl.fluid_count, pairs, h, dens.rho, dens.alpha, rho0, dt,
+        P.density_residual(x, v, mf, dens.gb, dens.gvb, nl.fluid, nl.fluid_count, pairs, h, dens.rho, dens.alpha, rho0, dt,
                            err, k)
 
     def apply_stiffness(self, x, mf, dens, nl, pairs, h, k, dt, v, k_total):
         P.apply_stiffness(x, mf, dens.gb, nl.fluid, nl.fluid_count, pairs, h, k, dt, v, k_total)
 
     def viscosity(self, x, v, mf, dens, lam, nl, h, zeta, nu_dt, v_out, drho, disp, pairs):
-        P.xsph(x, v, mf, dens.rho, dens.gb, lam, nl.fluid, nl.fluid_count, h, zeta, nu_dt, v_out, drho, disp, pairs)
+        P.xsph(x, v, mf, dens.rho, dens.gb, dens.gvb, lam, nl.fluid, nl.fluid_count, h, zeta, nu_dt, v_out, drho, disp, pairs)
         return pairs
+
+    def wall_rate(self, x, walls, nl, h, dens):
+        P.wall_rate(x, walls.x, walls.m, walls.v, nl.boundary, nl.boundary_count, h, dens.gvb)
 
     def pf_global(self, x, s, mf, dens, nl, h, rho0, a, x_out, lam_sum):
         P.pf_global(x, s, mf, dens.gb, nl.fluid, nl.fluid_count, h, rho0, dens.lam, a, x_out, lam_sum)

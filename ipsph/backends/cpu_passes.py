@@ -19,8 +19,8 @@ from numba import njit, prange
 from .. import kernels
 from . import bodies
 from .bodies import (DENSITY_ROWS, FAST, PF_GLOBAL_ROWS, RATE_ROWS, STIFFNESS_ROWS, VISCOSITY_ROWS,
-                     density_at, density_residual_at, divergence_residual_at, pf_global_at, stiffness_at,
-                     viscosity_at)
+                     WALL_RATE_ROWS, density_at, density_residual_at, divergence_residual_at, pf_global_at,
+                     stiffness_at, viscosity_at, wall_rate_at)
 from ..kernels import w
 
 CHUNKS = 64  # blocks of particles per pass, each with its own scratch buffer
@@ -70,24 +70,24 @@ def density_factor_lambda(x, mf, xb, mb, nf, cf, nb, cb, h, rho0, rho, alpha, la
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)
-def divergence_residual(x, v, mf, gb, nf, cf, pair_grad, h, alpha, n_nbrs, dt, drho, k):
+def divergence_residual(x, v, mf, gb, gvb, nf, cf, pair_grad, h, alpha, n_nbrs, dt, drho, k):
     """bodies.divergence_residual_at for every particle."""
     bufs = _fluid_buffers(RATE_ROWS, nf)
     for c in prange(bufs.shape[0]):
         lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
         for i in range(lo, hi):
-            divergence_residual_at(i, x, v, mf, gb, nf, cf, pair_grad, pair_grad.shape[0] == x.shape[0], h, alpha,
+            divergence_residual_at(i, x, v, mf, gb, gvb, nf, cf, pair_grad, pair_grad.shape[0] == x.shape[0], h, alpha,
                                    n_nbrs, dt, bufs[c], drho, k)
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)
-def density_residual(x, v, mf, gb, nf, cf, pair_grad, h, rho, alpha, rho0, dt, rho_err, k):
+def density_residual(x, v, mf, gb, gvb, nf, cf, pair_grad, h, rho, alpha, rho0, dt, rho_err, k):
     """bodies.density_residual_at for every particle."""
     bufs = _fluid_buffers(RATE_ROWS, nf)
     for c in prange(bufs.shape[0]):
         lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
         for i in range(lo, hi):
-            density_residual_at(i, x, v, mf, gb, nf, cf, pair_grad, pair_grad.shape[0] == x.shape[0], h, rho, alpha,
+            density_residual_at(i, x, v, mf, gb, gvb, nf, cf, pair_grad, pair_grad.shape[0] == x.shape[0], h, rho, alpha,
                                 rho0, dt, bufs[c], rho_err, k)
 
 
@@ -103,7 +103,7 @@ def apply_stiffness(x, mf, gb, nf, cf, pair_grad, h, k, dt, v, k_total):
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)
-def xsph(x, v, mf, rho, gb, lam, nf, cf, h, zeta, nu_dt, v_out, drho, disp, pair_grad):
+def xsph(x, v, mf, rho, gb, gvb, lam, nf, cf, h, zeta, nu_dt, v_out, drho, disp, pair_grad):
     """bodies.viscosity_at for every particle; the PF displacement only if `disp` has a row per
     particle, the pair cache only if `pair_grad` has."""
     with_disp = disp.shape[0] == x.shape[0]
@@ -114,7 +114,7 @@ def xsph(x, v, mf, rho, gb, lam, nf, cf, h, zeta, nu_dt, v_out, drho, disp, pair
     for c in prange(bufs.shape[0]):
         lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
         for i in range(lo, hi):
-            viscosity_at(i, x, v, mf, rho, gb, lam, nf, cf, h, zeta, nu_dt, eps, standard, with_disp, fill,
+            viscosity_at(i, x, v, mf, rho, gb, gvb, lam, nf, cf, h, zeta, nu_dt, eps, standard, with_disp, fill,
                          bufs[c], v_out, drho, disp, pair_grad)
 
 
@@ -126,6 +126,16 @@ def pf_global(x, s, mf, gb, nf, cf, h, rho0, lam, a, x_out, lam_sum):
         lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
         for k in range(lo, hi):
             pf_global_at(k, x, s, mf, gb, nf, cf, h, rho0, lam, a, bufs[c], x_out, lam_sum)
+
+
+@njit(parallel=True, fastmath=FAST, cache=True)
+def wall_rate(x, xb, mb, vb, nb, cb, h, gvb):
+    """bodies.wall_rate_at for every particle (moving walls only)."""
+    bufs = _fluid_buffers(WALL_RATE_ROWS, nb)
+    for c in prange(bufs.shape[0]):
+        lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
+        for i in range(lo, hi):
+            wall_rate_at(i, x, xb, mb, vb, nb, cb, h, bufs[c], gvb)
 
 
 # -- serial reductions ------------------------------------------------------------------------------
@@ -217,7 +227,8 @@ def _depend_on_inlined_sources() -> None:
     files = (__file__, bodies.__file__, kernels.__file__)
     stats = [os.stat(f) for f in files]
     stamp = (max(s.st_mtime for s in stats), sum(s.st_size for s in stats))
-    for d in (density_factor_lambda, divergence_residual, density_residual, apply_stiffness, xsph, pf_global):
+    for d in (density_factor_lambda, divergence_residual, density_residual, apply_stiffness, xsph, pf_global,
+              wall_rate):
         cache_file = getattr(getattr(d, "_cache", None), "_cache_file", None)
         if cache_file is not None and hasattr(cache_file, "_source_stamp"):
             cache_file._source_stamp = stamp

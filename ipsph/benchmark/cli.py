@@ -85,6 +85,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         p.add_argument(f"--{'render' if issue == 4 else 'surface'}-overhead", action="store_true",
                        help=f"issue {issue}: wall time of `ipsph run` on the default scene with and without "
                             f"{what}, --repeats alternating pairs, and the slow-down (target <= 25 %%)")
+    p.add_argument("--moving-walls", action="store_true",
+                   help="issue 19: per-step cost of a kinematic wall and of a rigid body against the same scene "
+                        "with the wall static (interleaved turns, --repeats, --threads; same-run ratios)")
     p.add_argument("--first-frame", action="store_true",
                    help="time to first frame of `ipsph run` (default scene), with a cold and a warm Numba cache")
     p.add_argument("--table1", action="store_true",
@@ -383,6 +386,12 @@ def main(args) -> int:
         texts.append(("## Time to first frame\n\n" if args.markdown else "== time to first frame ==\n")
                      + report.first_frame_table(rows, args.markdown, FIRST_FRAME_TARGET_S))
         failed |= not all(r["ok"] for r in rows)
+    if args.moving_walls:
+        from .moving_cost import moving_cost, table as moving_table
+        rows = moving_cost(repeats=args.repeats, threads=args.threads, log=_log)
+        out["moving_walls"] = rows
+        texts.append(("## Moving walls and bodies per step\n\n" if args.markdown else "== moving walls per step ==\n")
+                     + moving_table(rows, args.markdown))
     if args.render_sizes is not None:
         from .render_cost import render_cost, table
         rows = [render_cost(n) for n in (args.render_sizes or [100_000, 1_000_000])]
@@ -423,7 +432,7 @@ def main(args) -> int:
         failed |= any(r.get("error") for r in rows)
     if args.table1 or not (args.first_frame or args.scaling is not None or args.render_sizes is not None
                            or args.render_overhead or args.surface_sizes is not None or args.surface_overhead
-                           or args.sweep):
+                           or args.sweep or args.moving_walls):
         peer, why = _use_peer(args.peer)
         header += f"; {why}"
         _log(header)

@@ -8,6 +8,8 @@ Layout of an output folder OUT (fixed; the runner fills it, `ipsph render` reads
     OUT/boundary.vtu              boundary particles, written once (fields `volume`, `id`)
     OUT/boundary_surface.vtp      the transformed boundary meshes, for renders
     OUT/surfaces/surface_000000.vtp   the fluid's surface mesh per frame (output.surface, `ipsph surface`)
+    OUT/bodies/bodies_000000.vtp  the moving walls' and rigid bodies' surfaces per frame (io.bodies)
+    OUT/bodies.csv                one row per moving wall per step (io.bodies.BODIES_COLUMNS)
     OUT/stats.csv                 one row per step
     OUT/run.json                  provenance
     OUT/paraview_view.py          a ParaView script that opens the run with its settings (ipsph.paraview)
@@ -29,7 +31,7 @@ from ..errors import WriteError
 __all__ = [
     "FRAMES_DIR", "RUN_PVD", "BOUNDARY_VTU", "BOUNDARY_SURFACE", "STATS_CSV", "RUN_JSON",
     "RENDERS_DIR", "PLOTS_DIR", "SURFACES_DIR", "PARAVIEW_SCRIPT", "Part", "PARTS", "part", "frame_file",
-    "surface_file", "atomic_path", "check_writable",
+    "surface_file", "atomic_path", "check_writable", "BODIES_DIR", "BODIES_CSV", "bodies_file",
 ]
 
 RUN_PVD = "run.pvd"
@@ -42,6 +44,8 @@ RENDERS_DIR = "renders"
 PLOTS_DIR = "plots"
 SURFACES_DIR = "surfaces"
 PARAVIEW_SCRIPT = "paraview_view.py"
+BODIES_DIR = "bodies"
+BODIES_CSV = "bodies.csv"
 
 
 @dataclass(frozen=True)
@@ -64,6 +68,7 @@ PARTS = (
     Part("surface"),
     Part("boundary", BOUNDARY_VTU),
     Part("boundary_surface", BOUNDARY_SURFACE),
+    Part("bodies"),            # moving walls and rigid bodies: their surfaces, a file per frame
 )
 
 
@@ -91,6 +96,11 @@ def check_writable(out: Path) -> None:
 def frame_file(index: int) -> str:
     """Relative path of fluid frame `index` inside an output folder."""
     return f"{FRAMES_DIR}/fluid_{index:06d}.vtu"
+
+
+def bodies_file(index: int) -> str:
+    """Relative path of the moving walls' surfaces of frame `index`."""
+    return f"{BODIES_DIR}/bodies_{index:06d}.vtp"
 
 
 def surface_file(index: int, fmt: str = "vtp") -> str:

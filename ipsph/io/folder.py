@@ -99,6 +99,10 @@ class RunFolder:
             self.stats = stats.StatsWriter(out / io.STATS_CSV, stats.STATS_COLUMNS,
                                                   truncate_after_step=resume.steps)
         self.surface = self._write_surface()
+        self.bodies = None   # moving walls and rigid bodies: bodies.csv, bodies/*.vtp (io.bodies)
+        if sim.walls is not None:
+            from .bodies import BodiesLog
+            self.bodies = BodiesLog(out, None if resume is None else resume.time)
         self.renderer = self._configure_renderer(renderer) if renderer is not None else None
         self.surfacer = surfacer  # surfaces/*.vtp beside the solver (ipsph.surface_worker)
         if surfacer is not None:
@@ -121,7 +125,7 @@ class RunFolder:
         """Remove frame files (and their renders) numbered `first` and later: a resumed run rewrites them.
         Temporary files a killed run left behind go too (nothing references them)."""
         for folder, pattern in ((io.FRAMES_DIR, "fluid_*.vtu"), (io.RENDERS_DIR, "frame_*.png"),
-                                (io.SURFACES_DIR, "surface_*.*")):
+                                (io.SURFACES_DIR, "surface_*.*"), (io.BODIES_DIR, "bodies_*.vtp")):
             for f in (self.out / folder).glob(pattern):
                 index = f.stem.rsplit("_", 1)[-1]
                 if index.isdigit() and int(index) >= first:
@@ -168,7 +172,10 @@ class RunFolder:
             return None
         import pyvista as pv
         from ..sampling import boundary_surface
-        surf = pv.merge([boundary_surface(spec) for spec in self.scene.boundaries])
+        static = [spec for spec in self.scene.boundaries if not spec.moving]   # moving ones: bodies/
+        if not static:
+            return None
+        surf = pv.merge([boundary_surface(spec) for spec in static])
         vtu.write_surface(self.out / io.BOUNDARY_SURFACE, surf)
         return surf
 
@@ -207,14 +214,16 @@ class RunFolder:
         vtu.write_particles(self.out / name, sim.positions.astype(np.float32), fields, sim.time,
                                    field_data=self.field_data)
         self._surfaces_done()  # listed by the same .pvd rewrite as the frame
-        self.pvd.add(sim.time, name)
+        moving = {} if self.bodies is None else {"bodies": self.bodies.frame(sim, self.frames)}
+        self.pvd.add(sim.time, name, **moving)
         t1 = time.perf_counter()
         self.write_seconds += t1 - t0
         if self.surfacer is not None:  # after the frame is on disk; never waits for the surface process
             self.surfacer.submit(self.frames, sim.time, sim.positions, sim.velocities, _warn)
         if self.renderer is not None and self.scene.render.mode != "surface":
             png = self.out / io.RENDERS_DIR / f"frame_{self.frames:06d}.png"
-            if not self.renderer.submit(sim.positions, sim.velocities, png, sim.time):
+            if not self.renderer.submit(sim.positions, sim.velocities, png, sim.time,
+                                        *(self.out / m for m in moving.values())):
                 self._render_failed()
             self.render_seconds += time.perf_counter() - t1  # time the solver waited for renders
         self.frames += 1
@@ -224,6 +233,8 @@ class RunFolder:
             self.checkpoint(sim)
 
     def step(self, s) -> None:
+        if self.bodies is not None:
+            self.bodies.step(self.sim)
         row = stats.step_row(s, self.sim.n_fluid)
         for p, v in s.timings.items():
             self.timings.setdefault(p, []).append(1000 * v)

@@ -105,6 +105,7 @@ class Method:
         state.zeros("pressure")                     # output field, follows reordering
         self.dt_prev: float | None = None
         self.report = StepReport()
+        self.walls = None   # a rigid.WallDriver when walls move (Simulation sets it)
 
     # -- scratch at capacity, used at the active count ---------------------------------------
     def allocate_scratch(self, data_cls) -> None:
@@ -145,6 +146,25 @@ class Method:
         neither goes negative when no particle is compressed (a free-falling or spreading fluid)."""
         be, n = self.be, self.state.n
         return be.mean(dens.err), max(be.max(dens.rho) / self.fluid.rho0 - 1.0, 0.0) if n else 0.0
+
+    # -- moving walls (ipsph.rigid; all three no-ops with static walls) -------------------------
+    def move_walls(self, dt: float) -> None:
+        """Moving walls to where they are at the end of this step (before the neighbour search that sees them)."""
+        if self.walls is not None:
+            self.walls.move(dt)
+
+    def wall_rate(self, x, dens) -> None:
+        """The moving walls' part of D rho/Dt at these positions (dens.gvb; stays 0 for static walls)."""
+        if self.boundary.moving:
+            self.be.wall_rate(x, self.boundary, self.lists, self.fluid.h, dens)
+
+    def wall_reaction(self, dt: float, lam=None, k=()) -> None:
+        """The fluid's force and torque on the moving walls from what this step's pressure parts
+        applied: the PF multipliers `lam` and the DFSPH-type stiffness totals `k` (rigid.WallDriver)."""
+        if self.walls is not None:
+            be = self.be
+            self.walls.reaction(be.to_host(self.state.x), self.lists, dt,
+                                None if lam is None else be.to_host(lam), tuple(be.to_host(a) for a in k))
 
     @property
     def lists(self):

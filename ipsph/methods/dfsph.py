@@ -51,6 +51,7 @@ class DFSPH(Method):
         with self.timer("densities"):
             d.pairs = self.be.densities(st.x, fl.mf, self.boundary, self.lists, fl.h, fl.rho0, d.dens,
                                         self.pairs.buffer(self.lists))
+            self.wall_rate(st.x, d.dens)
 
     def step(self, dt: float) -> StepReport:
         be, st, d, fl, cfg, nl = self.be, self.state, self.data, self.fluid, self.cfg, self.lists
@@ -70,7 +71,9 @@ class DFSPH(Method):
                                                           d.solve, dt, self.dt_prev, cfg.dfsph)
             rep.solver_maxed += maxed
             be.stiffness_pressure(st.pressure, st.k_dens, d.dens.rho)
+        self.wall_reaction(dt, k=(st.k_div, st.k_dens) if cfg.divergence.enabled else (st.k_dens,))
         be.axpy(st.x, dt, st.v)
+        self.move_walls(dt)
         self.prepare()
         return self.end(dt, d.dens)
 

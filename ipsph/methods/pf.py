@@ -60,6 +60,7 @@ class ProjectiveMethod(Method):
     def inertial_target(self, dt: float):
         """s = x + dt v + dt^2 g becomes the current position, neighbours at s; returns x^n in the new order."""
         self.be.advance(self.state.x, self.state.v, dt, self.g, self.data.x_old)
+        self.move_walls(dt)   # the projection sees moving walls where they are at t + dt
         (x_old,) = self.neighbour_search(self.data.x_old)
         return x_old
 
@@ -84,6 +85,7 @@ class ProjectiveMethod(Method):
         cache and returns it, for a solve that follows at these positions (IPSPH's)."""
         be, st, d, fl = self.be, self.state, self.data, self.fluid
         be.displacement_velocity(st.x, x_old, dt, st.v)
+        self.wall_rate(st.x, d.dens)
         pairs = be.viscosity(st.x, st.v, fl.mf, d.dens, st.pd_lambda, self.lists, fl.h, self.scene.viscosity,
                              self.scene.standard_viscosity * dt, d.v_out, d.drho,
                              be.NO_DISPLACEMENT if disp is None else disp,
@@ -109,4 +111,5 @@ class PF(ProjectiveMethod):
             self.velocities(dt, x_old)
             rep.divergence_error = dt * be.mean_positive(d.drho) / self.fluid.rho0
         be.pf_pressure(st.pressure, st.pd_lambda, self.fluid.rho0, dt)  # p = -rho0 Lam / dt^2 (method.md 3)
+        self.wall_reaction(dt, lam=st.pd_lambda)
         return self.end(dt, d.dens)

@@ -167,6 +167,17 @@ class FrameRenderer:
         self.renderer.AddActor(actor)
         return actor
 
+    def set_moving(self, mesh) -> None:
+        """The moving walls' surfaces of the next frame (OUT/bodies/*.vtp): drawn like the walls,
+        but opaque (they are solid bodies); the splat engine redraws its wall layers for them."""
+        from .style import MOVING_OPACITY
+        if getattr(self, "_moving", None) is None:
+            self._moving = self._add_surface(mesh, MOVING_OPACITY, lighting=True, cull_front=False)
+            self._walls.append(self._moving)
+        else:
+            self._moving.GetMapper().SetInputData(mesh)
+        self._layers = None
+
     def _add_text(self, text: str, position: tuple[int, int], size: int, colour: str):
         from vtkmodules.vtkRenderingCore import vtkTextActor
 

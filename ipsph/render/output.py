@@ -130,6 +130,9 @@ def render_output(out_dir, *, speed_range=None, config_overrides: dict | None = 
     with FrameRenderer(config, bounds, radius, rng, surface, title=title) as r:
         for k, (i, (t, f)) in enumerate(todo):
             png = out / RENDERS_DIR / f"frame_{_frame_index(f, i):06d}.png"
+            moving = series.frame_parts[i].get("bodies")   # moving walls and bodies, where they are
+            if moving is not None and (out / moving).is_file():
+                r.set_moving(read_surface(out / moving))
             if mode == "surface":
                 r.render_surface(read_surface(out / series.surfaces[t]) if t in series.surfaces else None, png, time=t)
             else:

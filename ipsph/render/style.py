@@ -21,6 +21,7 @@ SURFACE_COLOUR = "#c9d3df"
 
 
 SURFACE_OPACITY = 0.18
+MOVING_OPACITY = 0.85   # moving walls and rigid bodies (solid; ipsph.io.bodies' surfaces)
 
 
 EDGE_OPACITY = 0.45                        # the walls' outline and creases

@@ -84,7 +84,9 @@ def _worker(jobs, results, parent_pid=None):
                     _, vtp, png, time = job
                     img = renderer.surface_image(read_surface(vtp), time=time)
                 else:
-                    points, velocities, png, time = job
+                    points, velocities, png, time, moving = job
+                    if moving is not None:
+                        renderer.set_moving(read_surface(moving))
                     img = renderer.image(points, velocities, time=time)
                 if encoding is not None:
                     encoding.result()  # one frame in the writer at a time; re-raises its error
@@ -172,13 +174,15 @@ class BackgroundRenderer:
         self._drain()
         return self.submitted - self.rendered
 
-    def submit(self, points: np.ndarray, velocities: np.ndarray, png: Path, time: float) -> bool:
+    def submit(self, points: np.ndarray, velocities: np.ndarray, png: Path, time: float,
+               moving: Path | None = None) -> bool:
         """Queue one frame (copied as float32); False once the worker has failed. Waits while the
-        frames in flight fill QUEUE_BYTES, so a slow renderer holds the solver back, not memory."""
+        frames in flight fill QUEUE_BYTES, so a slow renderer holds the solver back, not memory.
+        `moving`: the frame's moving-wall surfaces (OUT/bodies/*.vtp), drawn where they are."""
         if not self.alive:
             return False
         job = (np.asarray(points, dtype=np.float32), np.asarray(velocities, dtype=np.float32), Path(png),
-               float(time))
+               float(time), None if moving is None else str(moving))
         frame_bytes = max(job[0].nbytes + job[1].nbytes, 1)
         capacity = min(max(QUEUE_BYTES // frame_bytes, QUEUE_FRAMES[0]), QUEUE_FRAMES[1])
         while self.backlog >= capacity:

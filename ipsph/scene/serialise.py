@@ -88,4 +88,33 @@ def _entity_to_dict(kind: str, e) -> dict:
             d["allow_open_mesh"] = e.allow_open_mesh
     if kind == "fluid":
         d["velocity"] = _plain(e.velocity)
+    else:
+        d.update(_motion_to_dict(e))
+    return d
+
+
+def _motion_to_dict(b) -> dict:
+    """A boundary's motion and rigid-body keys (only those that differ from a static wall)."""
+    d: dict = {}
+    m = b.motion
+    if m.type != "static":
+        md = {"type": m.type}
+        keys = {"constant": ("velocity", "angular_velocity", "pivot"),
+                "sinusoid": ("axis", "amplitude", "angle_amplitude", "period", "phase_deg", "pivot"),
+                "keyframes": ("pivot",)}[m.type]
+        for k in keys:
+            if getattr(m, k) is not None:
+                md[k] = _plain(getattr(m, k))
+        if m.type == "keyframes":
+            md["keyframes"] = [{"time": k.time, "translate": _plain(k.translate),
+                                "rotate_axis": _plain(k.rotate_axis), "rotate_deg": k.rotate_deg}
+                               for k in m.keyframes]
+        d["motion"] = md
+    if b.dynamic:
+        if b.density is not None:
+            d["density"] = b.density
+        else:
+            d["mass"] = b.mass
+        d["velocity"] = _plain(b.velocity)
+        d["angular_velocity"] = _plain(b.angular_velocity)
     return d

@@ -41,7 +41,7 @@ def _show(v: Any) -> str:
 def _type_name(p: Param) -> str:
     return {"float": "float", "int": "integer", "bool": "boolean", "str": "string",
             "path": "path", "choice": "string", "vec3": "[x, y, z]", "range2": "[min, max]",
-            "fields": "list of strings"}[p.kind]
+            "fields": "list of strings", "keyframes": "array of tables"}[p.kind]
 
 
 def _fmt_default(p: Param) -> str:
@@ -53,6 +53,8 @@ def _fmt_default(p: Param) -> str:
     if isinstance(v, (tuple, list)):
         if p.kind == "fields":
             return "[" + ", ".join(f'"{x}"' for x in v) + "]"
+        if p.kind == "keyframes":
+            return "[]"
         return "[" + ", ".join(repr(float(x)) for x in v) + "]"
     if isinstance(v, (str, Path)):
         return f'"{v}"'

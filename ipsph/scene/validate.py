@@ -245,6 +245,9 @@ def _convert(ctx: _Ctx, p: Param, value: Any, shown: str) -> Any:
         if not lo < hi:
             raise ctx.fail(shown, f"min {_fmt(lo)} must be < max {_fmt(hi)}")
         return (lo, hi)
+    if kind == "keyframes":
+        from .bodies import convert_keyframes
+        return convert_keyframes(ctx, value, shown)
     if kind == "fields":
         if not isinstance(value, (list, tuple)):
             raise ctx.fail(shown, f"expected a list of field names, got {_show(value)}")
@@ -336,6 +339,11 @@ def _entity(ctx: _Ctx, kind: str, i: int, entry: dict, base_dir: Path, r: float)
         extra["velocity"] = g("velocity")
     else:
         extra["role"] = Role(g("role"))
+        if has_mesh:
+            mesh_given = _resolve_mesh(ctx, f"{prefix}.mesh", vals[f"{kind}.mesh"], base_dir)
+        from .bodies import boundary_extras   # motion, rigid bodies
+        extra.update(boundary_extras(ctx, prefix, vals, extra["role"], "mesh" if has_mesh else "box",
+                                     mesh_given if has_mesh else None))
     if has_box:
         for end in ("min", "max"):
             if f"{kind}.box.{end}" not in vals:

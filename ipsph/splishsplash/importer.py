@@ -8,6 +8,8 @@ from typing import Any
 
 from ..errors import ConfigError, read_text
 
+SPH_BODY_DENSITY = 1000.0   # SPlisHSPlasH's RigidBodies density when a dynamic body leaves it out
+
 __all__ = ["scene_dict", "DEFAULT_END_TIME"]
 
 # SPlisHSPlasH's own defaults where a scene leaves a key out (doc/file_format.md, Simulation.cpp)
@@ -415,17 +417,25 @@ class _Importer:
         if not isinstance(f, str) or not f:
             raise self.fail(f"{label}.geometryFile", "missing: ipsph samples walls from their "
                             "mesh")
-        if "isDynamic" in b and self.bool_(b["isDynamic"], f"{label}.isDynamic"):
-            raise self.fail(f"{label}.isDynamic", "dynamic rigid bodies are not supported; "
-                            "ipsph walls are static")
+        dynamic = "isDynamic" in b and self.bool_(b["isDynamic"], f"{label}.isDynamic")
         wall = self.bool_(b.get("isWall", False), f"{label}.isWall")
         invert = self.bool_(b.get("mapInvert", False), f"{label}.mapInvert")
         entry: dict = {"name": f"body{i}", "mesh": f,
                        "role": "container" if wall or invert else "obstacle"}
+        if dynamic:   # a two-way coupled rigid body (ipsph.rigid) of SPlisHSPlasH's density (default 1000)
+            if wall or invert:
+                raise self.fail(f"{label}.isDynamic", "a dynamic body cannot be a wall (isWall / "
+                                "mapInvert): it is an obstacle the fluid flows around")
+            density = b.get("density", SPH_BODY_DENSITY)
+            if isinstance(density, bool) or not isinstance(density, (int, float)) or not density > 0:
+                raise self.fail(f"{label}.density", f"{density!r}: a dynamic body needs a density > 0 (kg/m^3)")
+            entry["density"] = float(density)
+            if "density" not in b:
+                self.notes.append(f"{label}: no density given, SPlisHSPlasH's default {SPH_BODY_DENSITY:g} kg/m^3 used")
         self.transform(b, label, entry)
         for key, value in b.items():
             if key not in ("geometryFile", "translation", "scale", "rotationAxis",
-                           "rotationAngle", "isDynamic", "isWall", "mapInvert"):
+                           "rotationAngle", "isDynamic", "isWall", "mapInvert", "density"):
                 self.ignore("RigidBodies", key, value, index=i)
         return entry
 

@@ -30,11 +30,12 @@ validated as a TOML scene, so override keys are ipsph's (`--set simulation.metho
 | `RigidBodies[]`: `geometryFile`, `translation`, `scale`, `rotationAxis`, `rotationAngle` (radians), `isWall`, `mapInvert` | `[[boundary]] mesh`, ..., `role` = container if `isWall` or `mapInvert`, else obstacle |
 | `Emitters[]`: `type` 0 / 1, `width`, `height` (particles), `translation`, `rotationAxis`, `rotationAngle` (radians), `velocity`, `emitStartTime`, `emitEndTime` | `[[emitter]]` `shape` box / circle, `width` = width * 2r, `height` = height * 2r (circle: `radius` = width * r), `position`, `direction` and `height_axis` = the rotation's first and second columns, `velocity`, `start_time`, `end_time` (REAL_MAX: the run's end) |
 | `emitterReuseParticles` with `emitterBoxMin`, `emitterBoxMax` (a material, or the 2.0.0 `Configuration`) | `[domain] min`, `max`: fluid leaving the box is removed (ipsph emits fresh particles with new ids instead of reusing them); `maxEmitterParticles` is not needed (the capacity is planned from the emitters) |
+| `RigidBodies[]`: `isDynamic` = true, `density` (default 1000) | a dynamic rigid body: `[[boundary]] density`, role obstacle (ipsph.rigid; the mesh must be closed) |
 
 Mesh paths are relative to the scene file, as in SPlisHSPlasH (`../models/UnitBox.obj`).
 
 Refused (ConfigError): `simulationMethod` other than 4 or 5, `denseMode` other than 0,
-`isDynamic` bodies, `AnimationFields`, `sim2D`, partio particle files as fluid models,
+`isDynamic` bodies that are walls (`isWall`, `mapInvert`) or have a density <= 0, `AnimationFields`, `sim2D`, partio particle files as fluid models,
 `invert`ed fluid models, several materials with different density or viscosity.
 
 Warned about, in one message (`Scene.warnings`): every other key, e.g.

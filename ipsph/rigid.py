@@ -1,0 +1,362 @@
+"""Moving walls: kinematic walls (prescribed motion, ipsph.motion) and dynamic rigid bodies two-way
+coupled to the fluid (docs/method.md section 9).
+
+`WallDriver` owns every moving [[boundary]] of a scene. The methods call it at two points of a
+step (methods/base.py):
+
+* `move(dt)`: put the moving walls where they are at t + dt (positions and velocities of their
+  particles in `Boundary.x`, `Boundary.v`); a rigid body first integrates the forces of the last
+  `reaction` (symplectic Euler, quaternions). PF and IPSPH move the walls before their neighbour
+  search at the inertial target, so the projection sees them at t + dt; DFSPH after advection,
+  before its end-of-step search.
+* `reaction(...)`: the force and torque the fluid exerts on every moving wall in this step, from
+  what the pressure parts applied to the fluid through that wall's particles (Akinci et al. 2012):
+
+      F_b = mf P_i m_b grad W_ib   summed over fluid i,    P_i = K_i + (-Lam_i / (rho0 dt^2))
+
+  with K the total stiffness the DFSPH-type solves applied (k = p / rho^2) and Lam the PF
+  multipliers accumulated over the projection (method.md section 9 derives the PF part).
+  The sum is a serial scatter over the fluid particles' wall lists (fixed order: reproducible).
+
+Contacts (bodies with static walls and with each other) are one penalty spring-damper per pair
+of walls in touch, from their particles closer than CONTACT_DISTANCE_D * d (method.md section 9).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from .kernels import grad_w_factor
+from .model import BoundarySpec, Scene
+from .motion import Motion, quat_axis_angle, quat_matrix, quat_mul
+
+CONTACT_DISTANCE_D = 1.0     # contact when two walls' particles are closer than d = 2r
+# Fluid starts at least this many spacings d from a rigid body's particles (other walls: 1 d). The
+# full-mass lattice against an Akinci wall reads up to 1.145 rho0 (method.md section 1): against a
+# static wall that is the corner pop; against a body it launched a floating crate out of the water at
+# t = 0. A gap of 1.5 d starts the fluid next to the body slightly under-dense instead.
+BODY_GAP_D = 1.5
+CONTACT_STEPS = 4.0          # contact stiffness: omega_c = 1 / (CONTACT_STEPS dt), stable explicit springs
+CONTACT_DAMPING = 1.0        # damping ratio of the contact spring (critical: no bounce)
+CONTACT_FRICTION = 0.5       # Coulomb friction coefficient capping the contact's viscous tangential damping
+
+
+@njit(cache=True)
+def wall_forces(x, xb, mb, groups, nb, cb, coeff, mf, h, fb):
+    """fb_b = sum_i mf coeff_i m_b grad W_ib over the fluid particles i that see b, for wall
+    particles of moving groups (groups > 0); a serial scatter in a fixed order."""
+    fb[:] = 0.0
+    for i in range(x.shape[0]):
+        ci = coeff[i]
+        if ci == 0.0:
+            continue
+        for k in range(cb[i]):
+            b = nb[i, k]
+            if groups[b] <= 0:
+                continue
+            d0 = x[i, 0] - xb[b, 0]
+            d1 = x[i, 1] - xb[b, 1]
+            d2 = x[i, 2] - xb[b, 2]
+            f = mf * ci * mb[b] * grad_w_factor(math.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
+            fb[b, 0] += f * d0
+            fb[b, 1] += f * d1
+            fb[b, 2] += f * d2
+
+
+def mass_properties(spec: BoundarySpec, density: float) -> tuple[float, np.ndarray, np.ndarray]:
+    """(mass, centre of mass, inertia tensor about it) of the closed surface at `density`:
+    the divergence theorem over the triangles' tetrahedra from the origin."""
+    from .sampling import boundary_surface
+    mesh = boundary_surface(spec).triangulate()
+    pts = np.asarray(mesh.points, dtype=np.float64)
+    tri = np.asarray(mesh.faces).reshape(-1, 4)[:, 1:]
+    a, b, c = pts[tri[:, 0]], pts[tri[:, 1]], pts[tri[:, 2]]
+    vol = np.einsum("ij,ij->i", a, np.cross(b, c)) / 6.0
+    v_total = float(vol.sum())
+    if v_total < 0.0:   # inward normals: the same body
+        vol, v_total = -vol, -v_total
+    com = (vol[:, None] * (a + b + c)).sum(axis=0) / (4.0 * v_total)
+    s = a + b + c
+    cov = sum(np.einsum("i,ij,ik->jk", vol, p, p) for p in (a, b, c, s)) / 20.0
+    mass = density * v_total
+    cov = density * cov - mass * np.outer(com, com)
+    inertia = np.trace(cov) * np.eye(3) - cov
+    return mass, com, inertia, v_total
+
+
+class RigidBody:
+    """A dynamic body: centre of mass c, orientation q, velocity v, angular velocity w (world)."""
+
+    def __init__(self, name: str, group: int, spec: BoundarySpec, fluid_density: float):
+        self.name = name
+        self.group = group
+        dens = spec.density
+        mass, com, inertia, volume = mass_properties(spec, 1.0)
+        if dens is None:
+            dens = spec.mass / volume
+        self.mass = dens * volume
+        self.volume = volume
+        self.c0 = com
+        self.inertia_body = dens * inertia           # body frame = world frame at t = 0
+        self.inv_inertia_body = np.linalg.inv(self.inertia_body)
+        self.c = com.copy()
+        self.q = np.array([1.0, 0.0, 0.0, 0.0])
+        self.v = np.asarray(spec.velocity, dtype=np.float64).copy()
+        self.w = np.radians(np.asarray(spec.angular_velocity, dtype=np.float64))
+        self.force = np.zeros(3)        # fluid force and torque of the last reaction
+        self.torque = np.zeros(3)
+        self.contact_force = np.zeros(3)
+        self.contact_torque = np.zeros(3)
+
+    def rotation(self) -> np.ndarray:
+        return quat_matrix(self.q)
+
+    def integrate(self, dt: float, g: np.ndarray) -> None:
+        """Symplectic Euler: velocities from the forces, then the pose from the new velocities."""
+        r = self.rotation()
+        inv_i = r @ self.inv_inertia_body @ r.T
+        i_w = r @ self.inertia_body @ r.T
+        f = self.force + self.contact_force
+        tau = self.torque + self.contact_torque
+        self.v = self.v + dt * (f / self.mass + g)
+        self.w = self.w + dt * (inv_i @ (tau - np.cross(self.w, i_w @ self.w)))
+        self.c = self.c + dt * self.v
+        ang = float(np.linalg.norm(self.w)) * dt
+        if ang > 0.0:
+            self.q = quat_mul(quat_axis_angle(self.w, ang), self.q)
+            self.q /= np.linalg.norm(self.q)
+
+    def place(self, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """World positions and velocities of particles placed at x0 at t = 0."""
+        rel = (x0 - self.c0) @ self.rotation().T
+        return rel + self.c, self.v + np.cross(self.w, rel)
+
+    def state(self) -> dict:
+        return {k: np.array(getattr(self, k), dtype=np.float64) for k in
+                ("c", "q", "v", "w", "force", "torque", "contact_force", "contact_torque")}
+
+    def load(self, d: dict) -> None:
+        for k, v in d.items():
+            setattr(self, k, np.array(v, dtype=np.float64))
+
+
+class WallDriver:
+    """Every moving wall of a scene: its motion or body, `move`, `reaction`, the log rows."""
+
+    def __init__(self, scene: Scene, boundary, support: float, mf: float):
+        self.scene = scene
+        self.boundary = boundary
+        self.h = support
+        self.mf = mf
+        self.rho0 = scene.density0
+        self.g = np.asarray(scene.gravity, dtype=np.float64)
+        self.d = 2.0 * scene.particle_radius
+        self.t = 0.0
+        self.kinematic: list[tuple[int, str, Motion]] = []
+        self.bodies: list[RigidBody] = []
+        self.force = {}    # group -> (F, tau) of the last reaction, every moving wall
+        x0, groups = boundary.x0, boundary.groups
+        for k, spec in enumerate(scene.boundaries):
+            grp = k + 1
+            if not spec.moving:
+                continue
+            sel = groups == grp
+            if spec.dynamic:
+                self.bodies.append(RigidBody(spec.name, grp, spec, self.rho0))
+            else:
+                lo, hi = x0[sel].min(axis=0), x0[sel].max(axis=0)
+                pivot = spec.motion.pivot if spec.motion.pivot is not None else 0.5 * (lo + hi)
+                self.kinematic.append((grp, spec.name, Motion(spec.motion, pivot)))
+            self.force[grp] = (np.zeros(3), np.zeros(3))
+        self._fb = np.zeros((boundary.n, 3))
+        self.surface_cache: dict = {}   # name -> the wall's surface at its placement (io.bodies)
+        self.place(0.0)
+
+    # -- the two calls of a step ---------------------------------------------------------------
+    def place(self, t: float) -> None:
+        """Positions and velocities of every moving wall's particles at time t (bodies: as they are)."""
+        b = self.boundary
+        self.t_walls = t
+        for grp, _, motion in self.kinematic:
+            sel = np.flatnonzero(b.groups == grp)
+            b.x[sel] = motion.positions(b.x0[sel], t)
+            b.v[sel] = motion.velocities(b.x0[sel], t)
+        for body in self.bodies:
+            sel = np.flatnonzero(b.groups == body.group)
+            b.x[sel], b.v[sel] = body.place(b.x0[sel])
+
+    def move(self, dt: float) -> None:
+        """To t + dt: bodies integrate the last reaction's forces and their contacts first."""
+        if self.bodies:
+            self._contacts(dt)
+            for body in self.bodies:
+                body.integrate(dt, self.g)
+        self.place(self.t + dt)
+
+    def reaction(self, x, lists, dt: float, lam=None, k=()) -> None:
+        """The fluid's force and torque on every moving wall in this step (module docstring)."""
+        coeff = np.zeros(len(x))
+        if lam is not None:
+            coeff -= lam / (self.rho0 * dt * dt)
+        for kk in k:
+            coeff += kk
+        b = self.boundary
+        if len(self._fb) != b.n:
+            self._fb = np.zeros((b.n, 3))
+        wall_forces(x, b.x, b.m, b.groups, lists.boundary, lists.boundary_count, coeff, self.mf, self.h, self._fb)
+        for grp in self.force:
+            sel = np.flatnonzero(b.groups == grp)
+            f = self._fb[sel]
+            centre = self._centre(grp)
+            self.force[grp] = (f.sum(axis=0), np.cross(b.x[sel] - centre, f).sum(axis=0))
+        for body in self.bodies:
+            body.force, body.torque = self.force[body.group]
+
+    def _centre(self, grp: int) -> np.ndarray:
+        for body in self.bodies:
+            if body.group == grp:
+                return body.c
+        for g, _, motion in self.kinematic:
+            if g == grp:
+                r, tr = motion.pose(self.t_walls)
+                return motion.pivot + tr
+        raise KeyError(grp)
+
+    # -- contacts ------------------------------------------------------------------------------
+    def _contacts(self, dt: float) -> None:
+        """One penalty spring-damper per (body, partner wall) in touch, from the pairs of their
+        particles closer than the contact distance d_c (partners: static and kinematic walls, other
+        bodies). With w_p = d_c - r_p > 0 over the pairs, the penetration is delta = max w_p, the
+        normal n the w-weighted mean of the pairs' directions and the contact point the w-weighted
+        mean of the body's particles; then
+
+            f = mu [omega^2 delta - 2 zeta omega (v_rel . n)]_+ n,   omega = 1 / (CONTACT_STEPS dt)
+
+        mu the body's mass (the reduced mass for two bodies, equal and opposite forces), v_rel the
+        relative velocity at the contact point; tangentially a viscous friction -mu 2 zeta omega v_t,
+        capped at CONTACT_FRICTION |f|. One contact, not one spring per pair: a spring per
+        pair normalised by the pair count is not conservative (the count changes along the
+        approach) and bounced a dropped box higher than it fell."""
+        from .boundary import radius_lists
+        b = self.boundary
+        dc = CONTACT_DISTANCE_D * self.d
+        om = 1.0 / (CONTACT_STEPS * dt)
+        for body in self.bodies:
+            body.contact_force = np.zeros(3)
+            body.contact_torque = np.zeros(3)
+        by_group = {body.group: body for body in self.bodies}
+        for body in self.bodies:
+            mine = np.flatnonzero(b.groups == body.group)
+            other = np.flatnonzero(b.groups != body.group)
+            if len(other) == 0:
+                continue
+            order, nbr, cnt = radius_lists(np.ascontiguousarray(b.x[mine]), np.ascontiguousarray(b.x[other]), dc)
+            if cnt.sum() == 0:
+                continue
+            rows = np.repeat(np.arange(len(mine)), cnt)
+            cols = np.concatenate([nbr[i, :cnt[i]] for i in np.flatnonzero(cnt)])
+            p, q = mine[rows], other[order[cols]]
+            diff = b.x[p] - b.x[q]
+            r = np.linalg.norm(diff, axis=1)
+            n_pair = diff / np.maximum(r, 1e-12)[:, None]
+            w = dc - r
+            for grp_other in np.unique(b.groups[q]):
+                sel = b.groups[q] == grp_other
+                partner = by_group.get(int(grp_other))
+                if partner is not None and partner.group < body.group:
+                    continue   # that pair was done from the partner's side
+                ws = w[sel]
+                n = (ws[:, None] * n_pair[sel]).sum(axis=0)
+                if not np.linalg.norm(n) > 0.0:
+                    continue
+                n /= np.linalg.norm(n)
+                at = (ws[:, None] * b.x[p[sel]]).sum(axis=0) / ws.sum()
+                v_mine = body.v + np.cross(body.w, at - body.c)
+                v_other = (ws[:, None] * b.v[q[sel]]).sum(axis=0) / ws.sum() if partner is None else \
+                    partner.v + np.cross(partner.w, at - partner.c)
+                mu = body.mass if partner is None else body.mass * partner.mass / (body.mass + partner.mass)
+                v_rel = v_mine - v_other
+                mag = max(mu * (om * om * ws.max() - 2.0 * CONTACT_DAMPING * om * float(np.dot(v_rel, n))), 0.0)
+                f = mag * n   # contacts push, never pull
+                v_t = v_rel - float(np.dot(v_rel, n)) * n   # friction: viscous, capped by Coulomb's mu_f f_n
+                speed_t = float(np.linalg.norm(v_t))
+                if speed_t > 0.0 and mag > 0.0:
+                    f = f - min(CONTACT_FRICTION * mag, mu * 2.0 * CONTACT_DAMPING * om * speed_t) * v_t / speed_t
+                body.contact_force += f
+                body.contact_torque += np.cross(at - body.c, f)
+                if partner is not None:
+                    partner.contact_force -= f
+                    partner.contact_torque -= np.cross(at - partner.c, f)
+
+    # -- what the outputs and the clock read -----------------------------------------------------
+    def max_speed(self) -> float:
+        v = self.boundary.v
+        return float(np.sqrt((v * v).sum(axis=1).max())) if len(v) else 0.0
+
+    def rows(self, t: float) -> list[tuple]:
+        """One bodies.csv row per moving wall: time, name, centre, quaternion, velocity, force, torque
+        (kinematic walls: pivot, orientation and velocity of their motion)."""
+        out = []
+        for body in self.bodies:
+            f, tau = self.force[body.group]
+            out.append((t, body.name, *body.c, *body.q, *body.v, *f, *tau))
+        for grp, name, motion in self.kinematic:
+            r, tr = motion.pose(t)
+            c = motion.pivot + tr
+            h = 1e-6
+            v = ((motion.positions(motion.pivot[None], t + h) - motion.positions(motion.pivot[None], t - h)) / (2 * h))[0]
+            f, tau = self.force[grp]
+            out.append((t, name, *c, *_quat_of(r), *v, *f, *tau))
+        return out
+
+    def state_dict(self) -> dict[str, np.ndarray]:
+        """Flat {key: array} (a checkpoint stores it as it is): the clock, every body's state, the
+        last reaction and the kinematic walls' pivots (their groups and placements are the Boundary's)."""
+        d = {"t": np.array(self.t), "t_walls": np.array(self.t_walls)}
+        for body in self.bodies:
+            d.update({f"body.{body.name}.{k}": v for k, v in body.state().items()})
+        d.update({f"force.{g}": np.concatenate(ft) for g, ft in self.force.items()})
+        d.update({f"pivot.{name}": m.pivot.copy() for _, name, m in self.kinematic})
+        return d
+
+    def load_state_dict(self, d: dict) -> None:
+        self.t = float(d["t"])
+        for body in self.bodies:
+            body.load({k: d[f"body.{body.name}.{k}"] for k in body.state()})
+        for g in self.force:
+            ft = np.asarray(d[f"force.{g}"], dtype=np.float64)
+            self.force[g] = (ft[:3].copy(), ft[3:].copy())
+        for i, (grp, name, m) in enumerate(self.kinematic):
+            m.pivot = np.asarray(d[f"pivot.{name}"], dtype=np.float64).copy()
+        self.t_walls = float(d["t_walls"])   # the walls are where the saved step left them (the Boundary's state)
+
+
+def _quat_of(r: np.ndarray) -> np.ndarray:
+    """The unit quaternion (w, x, y, z) of a rotation matrix (w >= 0)."""
+    w = math.sqrt(max(0.0, 1.0 + r[0, 0] + r[1, 1] + r[2, 2])) / 2.0
+    x = math.copysign(math.sqrt(max(0.0, 1.0 + r[0, 0] - r[1, 1] - r[2, 2])) / 2.0, r[2, 1] - r[1, 2])
+    y = math.copysign(math.sqrt(max(0.0, 1.0 - r[0, 0] + r[1, 1] - r[2, 2])) / 2.0, r[0, 2] - r[2, 0])
+    z = math.copysign(math.sqrt(max(0.0, 1.0 - r[0, 0] - r[1, 1] + r[2, 2])) / 2.0, r[1, 0] - r[0, 1])
+    return np.array([w, x, y, z])
+
+
+def body_gap_mask(fluid_x: np.ndarray, scene: Scene, walls: list[np.ndarray], r: float) -> np.ndarray:
+    """True for the fluid particles at least BODY_GAP_D d from every rigid body's wall particles
+    (`walls`: the sampled particles of each scene boundary, in order)."""
+    from .point_kernels import nearest_distance
+    body = [w for spec, w in zip(scene.boundaries, walls) if spec.dynamic]
+    gap = BODY_GAP_D * 2.0 * r
+    pts = np.ascontiguousarray(np.concatenate(body))
+    return nearest_distance(np.ascontiguousarray(fluid_x), pts, gap) >= gap
+
+
+def boundary_groups(scene: Scene, counts: list[int]) -> np.ndarray | None:
+    """Per wall particle: 0 for a static wall, k + 1 for the moving scene.boundaries[k]; None
+    when no wall moves (every wall as before: one volume group, no driver)."""
+    if not any(b.moving for b in scene.boundaries):
+        return None
+    return np.concatenate([np.zeros(0, dtype=np.int32)] + [
+        np.full(n, (k + 1) if spec.moving else 0, dtype=np.int32)
+        for k, (spec, n) in enumerate(zip(scene.boundaries, counts))])
