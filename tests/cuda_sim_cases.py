@@ -118,6 +118,48 @@ def case_emitters(steps: int = 14) -> dict:
     return out
 
 
+def paddle_and_crate(method: str):
+    """test_moving_walls's checkpoint scene: 72 particles at r = 0.05 in a tank, a paddle on a
+    sinusoid (a kinematic wall: amplitude 0.05 m, period 0.5 s) and a floating crate (a rigid
+    body of density 500 driven by the fluid's reaction)."""
+    return scene_from_dict({
+        "simulation": {"method": method, "particle_radius": 0.05, "end_time": 1.0},
+        "fluid": [{"box": {"min": [0, 0, 0], "max": [0.6, 0.3, 0.4]}}],
+        "boundary": [{"name": "tank", "box": {"min": [0, 0, 0], "max": [1.0, 0.6, 0.4]}},
+                     {"name": "paddle", "role": "obstacle", "box": {"min": [0.7, 0, 0], "max": [0.75, 0.6, 0.4]},
+                      "motion": {"type": "sinusoid", "amplitude": 0.05, "period": 0.5}},
+                     {"name": "crate", "role": "obstacle", "box": {"min": [0.2, 0.25, 0.1], "max": [0.4, 0.35, 0.3]},
+                      "density": 500.0}],
+        "render": {"enabled": False}}, name=f"paddle-{method}")
+
+
+def case_moving_walls(steps: int = 8) -> dict:
+    """Per step, CPU against CUDA float64 with moving walls: the fluid (matched by id), the
+    walls' positions (re-sorted on the host each step: the same order on both), the crate's
+    centre and velocity (integrated from the fluid's reaction), and the largest moving-wall
+    density-rate term gvb (the wall_rate pass) on each backend."""
+    out = {}
+    for method in ("ipsph", "pf", "dfsph"):
+        cpu, gpu = twins(paddle_and_crate(method))
+        rows = []
+        for _ in range(steps):
+            dt = cpu.dt_next
+            cpu.step(dt)
+            gpu.step(dt)
+            oc, og = np.argsort(cpu.ids), np.argsort(gpu.ids)
+            bc, bg = cpu.walls.bodies[0], gpu.walls.bodies[0]
+            gvb = [float(np.abs(s.be.to_host(s.method.data.dens.gvb)).max()) for s in (cpu, gpu)]
+            rows.append({k: rel(getattr(cpu, f)[oc], getattr(gpu, f)[og])
+                         for k, f in (("x", "positions"), ("v", "velocities"), ("rho", "densities"))} | {
+                         "same_ids": bool(np.array_equal(cpu.ids[oc], gpu.ids[og])),
+                         "walls_x": rel(cpu.boundary.x, gpu.boundary.x), "walls_v": rel(cpu.boundary.v, gpu.boundary.v),
+                         "crate_c": rel(bc.c, bg.c), "crate_v": rel(bc.v, bg.v), "gvb": gvb,
+                         "walls_speed": float(np.abs(cpu.boundary.v).max()), "crate_speed": float(np.linalg.norm(bc.v)),
+                         "dt_next": [cpu.dt_next, gpu.dt_next]})
+        out[method] = rows
+    return out
+
+
 def case_float32(steps: int = 8) -> dict:
     """IPSPH in float32 on the CUDA backend beside the CPU's float64, and a float32 free fall."""
     cpu, gpu = twins(tank("ipsph"), "float32")
@@ -280,6 +322,10 @@ def case_record() -> dict:
             sim = Simulation(scene, fx, fv, bx, backend=get_backend("cuda", precision))
             sim.step()
             sim.step()  # the warm starts (they need the previous step)
+    for precision in ("float64", "float32"):   # moving walls: the wall_rate pass
+        scene = paddle_and_crate("ipsph")
+        fx, fv, bx, _ = sample_scene(scene)
+        Simulation(scene, fx, fv, bx, backend=get_backend("cuda", precision)).step()
     return {"launches": [json.loads(k) for k in seen]}
 
 
