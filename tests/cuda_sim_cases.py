@@ -118,12 +118,12 @@ def case_emitters(steps: int = 14) -> dict:
     return out
 
 
-def paddle_and_crate(method: str):
-    """test_moving_walls's checkpoint scene: 72 particles at r = 0.05 in a tank, a paddle on a
-    sinusoid (a kinematic wall: amplitude 0.05 m, period 0.5 s) and a floating crate (a rigid
+def paddle_and_crate(method: str, r: float = 0.04):
+    """test_moving_walls's checkpoint scene at r = 0.04 (48 fluid particles) in a tank, a paddle
+    on a sinusoid (a kinematic wall: amplitude 0.05 m, period 0.5 s) and a floating crate (a rigid
     body of density 500 driven by the fluid's reaction)."""
     return scene_from_dict({
-        "simulation": {"method": method, "particle_radius": 0.05, "end_time": 1.0},
+        "simulation": {"method": method, "particle_radius": r, "end_time": 1.0},
         "fluid": [{"box": {"min": [0, 0, 0], "max": [0.6, 0.3, 0.4]}}],
         "boundary": [{"name": "tank", "box": {"min": [0, 0, 0], "max": [1.0, 0.6, 0.4]}},
                      {"name": "paddle", "role": "obstacle", "box": {"min": [0.7, 0, 0], "max": [0.75, 0.6, 0.4]},
@@ -155,6 +155,8 @@ def case_moving_walls(steps: int = 8) -> dict:
                          "walls_x": rel(cpu.boundary.x, gpu.boundary.x), "walls_v": rel(cpu.boundary.v, gpu.boundary.v),
                          "crate_c": rel(bc.c, bg.c), "crate_v": rel(bc.v, bg.v), "gvb": gvb,
                          "walls_speed": float(np.abs(cpu.boundary.v).max()), "crate_speed": float(np.linalg.norm(bc.v)),
+                         "crate_force": rel(cpu.walls.force[bc.group][0], gpu.walls.force[bc.group][0]),
+                         "crate_force_n": float(np.linalg.norm(cpu.walls.force[bc.group][0])),
                          "dt_next": [cpu.dt_next, gpu.dt_next]})
         out[method] = rows
     return out

@@ -122,14 +122,14 @@ def test_moving_walls_and_a_rigid_body_follow_the_cpu_backend(results, method):
     rows = results["moving_walls"][method]
     for step, r in enumerate(rows):
         assert r["same_ids"], f"{method} step {step}: the ids differ"
-        for field in ("x", "v", "rho", "walls_x", "walls_v", "crate_c", "crate_v"):
+        for field in ("x", "v", "rho", "walls_x", "walls_v", "crate_c", "crate_v", "crate_force"):
             assert r[field] <= FLOAT64_REL, f"{method} step {step}: {field} differs by {r[field]:.3g} (relative)"
         g_cpu, g_cuda = r["gvb"]
         assert abs(g_cpu - g_cuda) <= FLOAT64_REL * g_cpu, f"{method} step {step}: gvb {r['gvb']}"
         assert abs(r["dt_next"][0] - r["dt_next"][1]) <= FLOAT64_REL * r["dt_next"][0]
-    # the walls did move and push: a paddle speed, a wall rate, a crate set moving by the fluid
+    # the walls did move and push: a paddle speed, a wall rate, the fluid's force on the crate
     assert max(r["walls_speed"] for r in rows) > 0.1 and min(r["gvb"][0] for r in rows) > 0
-    assert rows[-1]["crate_speed"] > 0
+    assert max(r["crate_force_n"] for r in rows) > 0 and rows[-1]["crate_speed"] > 0
 
 
 def test_float32_within_the_physics_tolerances(results):
