@@ -324,10 +324,10 @@ def case_record() -> dict:
             sim = Simulation(scene, fx, fv, bx, backend=get_backend("cuda", precision))
             sim.step()
             sim.step()  # the warm starts (they need the previous step)
-    for precision in ("float64", "float32"):   # moving walls: the wall_rate pass
-        scene = paddle_and_crate("ipsph")
-        fx, fv, bx, _ = sample_scene(scene)
-        Simulation(scene, fx, fv, bx, backend=get_backend("cuda", precision)).step()
+    for precision in ("float64", "float32"):   # moving walls (the wall_rate pass), an emitter (views, concat)
+        for scene in (paddle_and_crate("ipsph"), jet("ipsph")):
+            fx, fv, bx, _ = sample_scene(scene)
+            Simulation(scene, fx, fv, bx, backend=get_backend("cuda", precision)).step()
     return {"launches": [json.loads(k) for k in seen]}
 
 
