@@ -77,6 +77,92 @@ def case_methods(steps: int = 10) -> dict:
     return out
 
 
+def jet(method: str, r: float = 0.025):
+    """An emitter (12 particles a layer at 2 m/s, one every 0.025 s) firing across a closed box
+    with a 27-particle block on its floor, into a sink 0.12 m downstream, inside a [domain] box:
+    the count grows by emission and shrinks by compaction within 14 steps (test_emitters's jet,
+    smaller and coarser)."""
+    return scene_from_dict({
+        "simulation": {"method": method, "particle_radius": r, "end_time": 1.0},
+        "time_step": {"dt_max": 0.005},
+        "fluid": [{"box": {"min": [0.0, -0.3, -0.1], "max": [0.2, -0.1, 0.1]}}],
+        "boundary": [{"name": "tank", "box": {"min": [-0.3, -0.3, -0.3], "max": [0.3, 0.3, 0.3]}}],
+        "emitter": [{"name": "jet", "position": [-0.2, 0.0, 0.0], "direction": [1, 0, 0], "width": 0.2,
+                     "height": 0.15, "velocity": 2.0, "start_time": 0.0, "end_time": 0.2}],
+        "sink": [{"name": "drain", "min": [-0.08, -0.1, -0.3], "max": [0.3, 0.3, 0.3]}],
+        "domain": {"min": [-0.3, -0.3, -0.3], "max": [0.3, 0.3, 0.3]},
+        "render": {"enabled": False}}, name=f"jet-{method}")
+
+
+def case_emitters(steps: int = 14) -> dict:
+    """Per step, CPU against CUDA float64 with an emitter, a sink and a domain box: the counts
+    (active, emitted, removed), the ids, and positions and velocities particle by particle
+    (matched by id: the two backends may order particles on a cell face differently)."""
+    out = {}
+    for method in ("ipsph", "pf", "dfsph"):
+        cpu, gpu = twins(jet(method))
+        rows = []
+        for _ in range(steps):
+            dt = cpu.dt_next
+            rc, rg = cpu.step(dt), gpu.step(dt)
+            ic, ig = cpu.ids, gpu.ids
+            oc, og = np.argsort(ic), np.argsort(ig)
+            same_ids = bool(len(ic) == len(ig) and np.array_equal(ic[oc], ig[og]))
+            row = {"n": [cpu.n_fluid, gpu.n_fluid], "emitted": [rc.emitted, rg.emitted],
+                   "removed": [rc.removed, rg.removed], "same_ids": same_ids,
+                   "capacity": [cpu.state.capacity, gpu.state.capacity]}
+            if same_ids and len(ic):
+                row |= {k: rel(getattr(cpu, f)[oc], getattr(gpu, f)[og])
+                        for k, f in (("x", "positions"), ("v", "velocities"), ("rho", "densities"))}
+            rows.append(row)
+        out[method] = rows
+    return out
+
+
+def paddle_and_crate(method: str, r: float = 0.04):
+    """test_moving_walls's checkpoint scene at r = 0.04 (48 fluid particles) in a tank, a paddle
+    on a sinusoid (a kinematic wall: amplitude 0.05 m, period 0.5 s) and a floating crate (a rigid
+    body of density 500 driven by the fluid's reaction)."""
+    return scene_from_dict({
+        "simulation": {"method": method, "particle_radius": r, "end_time": 1.0},
+        "fluid": [{"box": {"min": [0, 0, 0], "max": [0.6, 0.3, 0.4]}}],
+        "boundary": [{"name": "tank", "box": {"min": [0, 0, 0], "max": [1.0, 0.6, 0.4]}},
+                     {"name": "paddle", "role": "obstacle", "box": {"min": [0.7, 0, 0], "max": [0.75, 0.6, 0.4]},
+                      "motion": {"type": "sinusoid", "amplitude": 0.05, "period": 0.5}},
+                     {"name": "crate", "role": "obstacle", "box": {"min": [0.2, 0.25, 0.1], "max": [0.4, 0.35, 0.3]},
+                      "density": 500.0}],
+        "render": {"enabled": False}}, name=f"paddle-{method}")
+
+
+def case_moving_walls(steps: int = 8) -> dict:
+    """Per step, CPU against CUDA float64 with moving walls: the fluid (matched by id), the
+    walls' positions (re-sorted on the host each step: the same order on both), the crate's
+    centre and velocity (integrated from the fluid's reaction), and the largest moving-wall
+    density-rate term gvb (the wall_rate pass) on each backend."""
+    out = {}
+    for method in ("ipsph", "pf", "dfsph"):
+        cpu, gpu = twins(paddle_and_crate(method))
+        rows = []
+        for _ in range(steps):
+            dt = cpu.dt_next
+            cpu.step(dt)
+            gpu.step(dt)
+            oc, og = np.argsort(cpu.ids), np.argsort(gpu.ids)
+            bc, bg = cpu.walls.bodies[0], gpu.walls.bodies[0]
+            gvb = [float(np.abs(s.be.to_host(s.method.data.dens.gvb)).max()) for s in (cpu, gpu)]
+            rows.append({k: rel(getattr(cpu, f)[oc], getattr(gpu, f)[og])
+                         for k, f in (("x", "positions"), ("v", "velocities"), ("rho", "densities"))} | {
+                         "same_ids": bool(np.array_equal(cpu.ids[oc], gpu.ids[og])),
+                         "walls_x": rel(cpu.boundary.x, gpu.boundary.x), "walls_v": rel(cpu.boundary.v, gpu.boundary.v),
+                         "crate_c": rel(bc.c, bg.c), "crate_v": rel(bc.v, bg.v), "gvb": gvb,
+                         "walls_speed": float(np.abs(cpu.boundary.v).max()), "crate_speed": float(np.linalg.norm(bc.v)),
+                         "crate_force": rel(cpu.walls.force[bc.group][0], gpu.walls.force[bc.group][0]),
+                         "crate_force_n": float(np.linalg.norm(cpu.walls.force[bc.group][0])),
+                         "dt_next": [cpu.dt_next, gpu.dt_next]})
+        out[method] = rows
+    return out
+
+
 def case_float32(steps: int = 8) -> dict:
     """IPSPH in float32 on the CUDA backend beside the CPU's float64, and a float32 free fall."""
     cpu, gpu = twins(tank("ipsph"), "float32")
@@ -239,6 +325,10 @@ def case_record() -> dict:
             sim = Simulation(scene, fx, fv, bx, backend=get_backend("cuda", precision))
             sim.step()
             sim.step()  # the warm starts (they need the previous step)
+    for precision in ("float64", "float32"):   # moving walls (the wall_rate pass), an emitter (views, concat)
+        for scene in (paddle_and_crate("ipsph"), jet("ipsph")):
+            fx, fv, bx, _ = sample_scene(scene)
+            Simulation(scene, fx, fv, bx, backend=get_backend("cuda", precision)).step()
     return {"launches": [json.loads(k) for k in seen]}
 
 

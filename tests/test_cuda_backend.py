@@ -49,9 +49,18 @@ def _start(case: str) -> subprocess.Popen:
                             text=True, env=env)
 
 
+# a one-line kernel compiled to PTX: NVVM and NVRTC both found (a system CUDA toolkit may bring
+# NVVM without NVRTC; the [cuda] extra's wheels bring both)
+PTX_PROBE = """
+from numba import cuda, types
+def k(a):
+    a[0] = 1.0
+cuda.compile_ptx(k, (types.float64[:],), cc=(9, 0))
+"""
+
+
 def _nvvm_available() -> bool:
-    out = subprocess.run([sys.executable, "-c", "from numba.cuda.cudadrv import nvvm; nvvm.NVVM()"],
-                         capture_output=True, text=True)
+    out = subprocess.run([sys.executable, "-c", PTX_PROBE], capture_output=True, text=True)
     return out.returncode == 0
 
 
@@ -59,7 +68,7 @@ def _nvvm_available() -> bool:
 def results(tmp_path_factory):
     """{case: parsed JSON}; the cases (and the benchmark's smoke run) run concurrently."""
     bench_json = tmp_path_factory.mktemp("bench") / "bench.json"
-    procs = {c: _start(c) for c in ("methods", "float32", "passes")}
+    procs = {c: _start(c) for c in ("methods", "float32", "passes", "emitters", "moving_walls")}
     procs["bench"] = _cli(["bench", "--backend", "cuda", "--scaling", "300", "--scaling-steps", "1", "--no-peer",
                            "--json", str(bench_json)], {}, bench_json.parent, wait=False)
     if _nvvm_available():
@@ -85,6 +94,42 @@ def test_float64_follows_the_cpu_backend(results, method):
         assert abs(r["dt_next"][0] - r["dt_next"][1]) <= FLOAT64_REL * r["dt_next"][0]
     # the solvers did work (a run of zero iterations would compare nothing)
     assert sum(sum(r["it_cpu"][:3]) for r in rows) > 10
+
+
+@pytest.mark.parametrize("method", ["ipsph", "pf", "dfsph"])
+def test_emitters_and_sinks_follow_the_cpu_backend(results, method):
+    """Emission (concat onto the state), the sink's compaction (take of fewer rows) and the
+    scratch's views of the active rows (head) on the device: per step the same counts and ids as
+    the CPU backend, positions, velocities and densities to FLOAT64_REL."""
+    rows = results["emitters"][method]
+    for step, r in enumerate(rows):
+        for key in ("n", "emitted", "removed", "capacity"):
+            assert r[key][0] == r[key][1], f"{method} step {step}: {key} {r[key]}"
+        assert r["same_ids"], f"{method} step {step}: the ids differ"
+        for field in ("x", "v", "rho"):
+            assert r[field] <= FLOAT64_REL, f"{method} step {step}: {field} differs by {r[field]:.3g} (relative)"
+    # the scene did what it is for: layers emitted, a layer removed, fewer particles than capacity
+    assert sum(r["emitted"][0] for r in rows) >= 36 and sum(r["removed"][0] for r in rows) > 0
+    assert rows[-1]["n"][0] < rows[-1]["capacity"][0]
+
+
+@pytest.mark.parametrize("method", ["ipsph", "pf", "dfsph"])
+def test_moving_walls_and_a_rigid_body_follow_the_cpu_backend(results, method):
+    """A paddle on a sinusoid and a floating crate: the moving walls' density-rate term (the
+    wall_rate pass, gvb), the walls re-sorted into the grid each step, and the fluid's reaction on
+    the crate (computed on the host from the device's multipliers and wall lists) give, per step,
+    the CPU backend's fluid, walls and crate to FLOAT64_REL."""
+    rows = results["moving_walls"][method]
+    for step, r in enumerate(rows):
+        assert r["same_ids"], f"{method} step {step}: the ids differ"
+        for field in ("x", "v", "rho", "walls_x", "walls_v", "crate_c", "crate_v", "crate_force"):
+            assert r[field] <= FLOAT64_REL, f"{method} step {step}: {field} differs by {r[field]:.3g} (relative)"
+        g_cpu, g_cuda = r["gvb"]
+        assert abs(g_cpu - g_cuda) <= FLOAT64_REL * g_cpu, f"{method} step {step}: gvb {r['gvb']}"
+        assert abs(r["dt_next"][0] - r["dt_next"][1]) <= FLOAT64_REL * r["dt_next"][0]
+    # the walls did move and push: a paddle speed, a wall rate, the fluid's force on the crate
+    assert max(r["walls_speed"] for r in rows) > 0.1 and min(r["gvb"][0] for r in rows) > 0
+    assert max(r["crate_force_n"] for r in rows) > 0 and rows[-1]["crate_speed"] > 0
 
 
 def test_float32_within_the_physics_tolerances(results):
@@ -129,7 +174,7 @@ def test_every_kernel_compiles_for_a_gpu(results):
     names = {name for _, name, _ in r["compiled"]}
     assert {"density_factor_lambda", "xsph", "pf_global", "apply_stiffness", "divergence_residual",
             "density_residual", "warm_stiffness", "_gather_fluid", "_gather_walls", "_place", "_partial_sums",
-            "_fold"} <= names
+            "_fold", "wall_rate"} <= names
     # the scratch block is thread-local memory: rows x stride x 8 bytes (density: 6 x (64 + 48) x 8)
     assert r["local_bytes"]["density_factor_lambda[64, 48]"] == 6 * 112 * 8
 

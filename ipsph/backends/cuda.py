@@ -94,13 +94,15 @@ class CUDABackend(Backend):
         return self._new((n, 3, k), self.real)
 
     def _wall_arrays(self, walls):
-        """The walls' positions and masses on the device, copied again whenever the Boundary
-        replaced its arrays (a re-sort into a new grid, a checkpoint restore)."""
+        """The walls' positions, masses and velocities on the device, copied again whenever the
+        Boundary replaced its arrays: a re-sort into a new grid, a checkpoint restore, and every
+        neighbour search after moving walls moved (`NeighbourSearch._resort_walls` reorders them
+        into new arrays; the walls move in place only before that search, when no pass runs)."""
         have = self._walls.get(id(walls))
-        if have is None or have[0] is not walls.x or have[1] is not walls.m:
-            have = (walls.x, walls.m, self.asarray(walls.x), self.asarray(walls.m))
+        if have is None or have[0] is not walls.x or have[1] is not walls.m or have[2] is not walls.v:
+            have = (walls.x, walls.m, walls.v, self.asarray(walls.x), self.asarray(walls.m), self.asarray(walls.v))
             self._walls[id(walls)] = have
-        return have[2], have[3]
+        return have[3:]
 
     # -- vector operations --------------------------------------------------------------------------
     def fill(self, a, value):
@@ -121,9 +123,22 @@ class CUDABackend(Backend):
         return a.reshape(n, a.size // n if n else 1)
 
     def take(self, a, perm):
-        out = self._new(a.shape, a.dtype)
-        self._launch(self.P.take_rows, a.shape[0], self._rows(a), perm, self._rows(out))
+        """new[i] = a[perm[i]] for the len(perm) <= len(a) rows of perm (a permutation, or the
+        ascending indices a compaction keeps)."""
+        out = self._new((perm.shape[0], *a.shape[1:]), a.dtype)
+        self._launch(self.P.take_rows, out.shape[0], self._rows(a), perm, self._rows(out))
         return out
+
+    def concat(self, a, b):
+        out = self._new((a.shape[0] + b.shape[0], *a.shape[1:]), a.dtype)
+        na = a.shape[0]
+        for part, lo, hi in ((a, 0, na), (b, na, out.shape[0])):
+            if hi > lo:
+                self._launch(self.P.copy, part.size, self._flat(out[lo:hi]), self._flat(part))
+        return out
+
+    def head(self, a, n):
+        return a[:n]  # a device array's leading rows: a view of the same memory
 
     def untake(self, a, perm):
         old = self._new(a.shape, a.dtype)
@@ -156,18 +171,18 @@ class CUDABackend(Backend):
         return self.P.passes(nl.fluid.shape[1], nl.boundary.shape[1])
 
     def densities(self, x, mf, walls, nl, h, rho0, out: Densities, pairs):
-        xb, mb = self._wall_arrays(walls)
+        xb, mb, _ = self._wall_arrays(walls)
         self._launch(self._passes(nl)["density_factor_lambda"], x.shape[0], x, mf, xb, mb, nl.fluid,
                      nl.fluid_count, nl.boundary, nl.boundary_count, h, rho0, out.rho, out.alpha, out.lam,
                      out.err, out.n_nbrs, out.gb, pairs)
         return pairs
 
     def divergence_residual(self, x, v, mf, dens, nl, pairs, h, dt, drho, k):
-        self._launch(self._passes(nl)["divergence_residual"], x.shape[0], x, v, mf, dens.gb, nl.fluid,
+        self._launch(self._passes(nl)["divergence_residual"], x.shape[0], x, v, mf, dens.gb, dens.gvb, nl.fluid,
                      nl.fluid_count, pairs, h, dens.alpha, dens.n_nbrs, dt, drho, k)
 
     def density_residual(self, x, v, mf, dens, nl, pairs, h, rho0, dt, err, k):
-        self._launch(self._passes(nl)["density_residual"], x.shape[0], x, v, mf, dens.gb, nl.fluid,
+        self._launch(self._passes(nl)["density_residual"], x.shape[0], x, v, mf, dens.gb, dens.gvb, nl.fluid,
                      nl.fluid_count, pairs, h, dens.rho, dens.alpha, rho0, dt, err, k)
 
     def apply_stiffness(self, x, mf, dens, nl, pairs, h, k, dt, v, k_total):
@@ -175,13 +190,18 @@ class CUDABackend(Backend):
                      pairs, h, k, dt, v, k_total)
 
     def viscosity(self, x, v, mf, dens, lam, nl, h, zeta, nu_dt, v_out, drho, disp, pairs):
-        self._launch(self._passes(nl)["xsph"], x.shape[0], x, v, mf, dens.rho, dens.gb, lam, nl.fluid,
+        self._launch(self._passes(nl)["xsph"], x.shape[0], x, v, mf, dens.rho, dens.gb, dens.gvb, lam, nl.fluid,
                      nl.fluid_count, h, zeta, nu_dt, v_out, drho, disp, pairs)
         return pairs
 
     def pf_global(self, x, s, mf, dens, nl, h, rho0, a, x_out, lam_sum):
         self._launch(self._passes(nl)["pf_global"], x.shape[0], x, s, mf, dens.gb, nl.fluid, nl.fluid_count, h,
                      rho0, dens.lam, a, x_out, lam_sum)
+
+    def wall_rate(self, x, walls, nl, h, dens):
+        xb, mb, vb = self._wall_arrays(walls)
+        self._launch(self._passes(nl)["wall_rate"], x.shape[0], x, xb, mb, vb, nl.boundary, nl.boundary_count, h,
+                     dens.gvb)
 
     def advance(self, x, v, dt, g, x_old):
         self._launch(self.P.advance, x.shape[0], x, v, dt, g, x_old)

@@ -12,8 +12,9 @@ Per step, all on the device:
      trimming), every hit ascending, then rotated to the CPU's row layout [neighbours above i,
      ascending | neighbours below, ascending];
   4. the wall lists from the walls' per-cell candidates.
-The static walls are sorted into the grid and given their per-cell candidates on the host, once
-per grid (the CPU code: `NeighbourSearch._fit_grid`), and copied to the device then. Only the
+The walls are sorted into the grid and given their per-cell candidates on the host, once
+per grid (the CPU code: `NeighbourSearch._fit_grid`; moving walls every step, `_resort_walls`),
+and copied to the device then. Only the
 fluid's bounding box (a reduction) and the largest list length come back to the host each step.
 """
 from __future__ import annotations
@@ -236,6 +237,8 @@ class CUDANeighbourSearch(NeighbourSearch):
 
     def update(self, x_fluid):
         self._fit_grid(x_fluid)
+        if getattr(self.boundary, "moving", False):
+            self._resort_walls(x_fluid)   # on the host, as the CPU's; use_boundary_sort copies them here
         g, d = self.grid, self._dev
         n, n_cells = x_fluid.shape[0], g.n_cells
         if self._scratch is None or self._scratch["cells"].shape[0] != n:

@@ -28,7 +28,7 @@ import numpy as np
 from .. import kernels
 from . import bodies
 from ._cuda import SIMULATOR, cuda, device_function
-from .bodies import DENSITY_ROWS, PF_GLOBAL_ROWS, RATE_ROWS, STIFFNESS_ROWS, VISCOSITY_ROWS
+from .bodies import DENSITY_ROWS, PF_GLOBAL_ROWS, RATE_ROWS, STIFFNESS_ROWS, VISCOSITY_ROWS, WALL_RATE_ROWS
 
 THREADS = 128                      # threads per block
 MAX_BLOCKS = 1 if SIMULATOR else 8192   # the simulator runs each thread as a Python thread: few of them
@@ -43,6 +43,7 @@ density_residual_at = device_function(bodies.density_residual_at)
 stiffness_at = device_function(bodies.stiffness_at)
 viscosity_at = device_function(bodies.viscosity_at)
 pf_global_at = device_function(bodies.pf_global_at)
+wall_rate_at = device_function(bodies.wall_rate_at)
 w = device_function(kernels.w)
 
 
@@ -70,17 +71,17 @@ def passes(kf: int, kb: int):
                        gb, pair_grad)
 
     @cuda.jit
-    def divergence_residual(x, v, mf, gb, nf, cf, pair_grad, h, alpha, n_nbrs, dt, drho, k):
+    def divergence_residual(x, v, mf, gb, gvb, nf, cf, pair_grad, h, alpha, n_nbrs, dt, drho, k):
         buf = cuda.local.array((RATE_ROWS, kf), f64)
         for i in range(cuda.grid(1), x.shape[0], cuda.gridsize(1)):
-            divergence_residual_at(i, x, v, mf, gb, nf, cf, pair_grad, pair_grad.shape[0] == x.shape[0], h, alpha,
+            divergence_residual_at(i, x, v, mf, gb, gvb, nf, cf, pair_grad, pair_grad.shape[0] == x.shape[0], h, alpha,
                                    n_nbrs, dt, buf, drho, k)
 
     @cuda.jit
-    def density_residual(x, v, mf, gb, nf, cf, pair_grad, h, rho, alpha, rho0, dt, rho_err, k):
+    def density_residual(x, v, mf, gb, gvb, nf, cf, pair_grad, h, rho, alpha, rho0, dt, rho_err, k):
         buf = cuda.local.array((RATE_ROWS, kf), f64)
         for i in range(cuda.grid(1), x.shape[0], cuda.gridsize(1)):
-            density_residual_at(i, x, v, mf, gb, nf, cf, pair_grad, pair_grad.shape[0] == x.shape[0], h, rho, alpha,
+            density_residual_at(i, x, v, mf, gb, gvb, nf, cf, pair_grad, pair_grad.shape[0] == x.shape[0], h, rho, alpha,
                                 rho0, dt, buf, rho_err, k)
 
     @cuda.jit
@@ -91,14 +92,14 @@ def passes(kf: int, kb: int):
                          k_total)
 
     @cuda.jit
-    def xsph(x, v, mf, rho, gb, lam, nf, cf, h, zeta, nu_dt, v_out, drho, disp, pair_grad):
+    def xsph(x, v, mf, rho, gb, gvb, lam, nf, cf, h, zeta, nu_dt, v_out, drho, disp, pair_grad):
         with_disp = disp.shape[0] == x.shape[0]
         fill = pair_grad.shape[0] == x.shape[0]
         eps = 0.01 * h * h
         standard = nu_dt > 0.0
         buf = cuda.local.array((VISCOSITY_ROWS, kf), f64)
         for i in range(cuda.grid(1), x.shape[0], cuda.gridsize(1)):
-            viscosity_at(i, x, v, mf, rho, gb, lam, nf, cf, h, zeta, nu_dt, eps, standard, with_disp, fill,
+            viscosity_at(i, x, v, mf, rho, gb, gvb, lam, nf, cf, h, zeta, nu_dt, eps, standard, with_disp, fill,
                          buf, v_out, drho, disp, pair_grad)
 
     @cuda.jit
@@ -107,9 +108,15 @@ def passes(kf: int, kb: int):
         for k in range(cuda.grid(1), x.shape[0], cuda.gridsize(1)):
             pf_global_at(k, x, s, mf, gb, nf, cf, h, rho0, lam, a, buf, x_out, lam_sum)
 
+    @cuda.jit
+    def wall_rate(x, xb, mb, vb, nb, cb, h, gvb):
+        buf = cuda.local.array((WALL_RATE_ROWS, kb), f64)
+        for i in range(cuda.grid(1), x.shape[0], cuda.gridsize(1)):
+            wall_rate_at(i, x, xb, mb, vb, nb, cb, h, buf, gvb)
+
     kernels = {"density_factor_lambda": density_factor_lambda, "divergence_residual": divergence_residual,
                "density_residual": density_residual, "apply_stiffness": apply_stiffness, "xsph": xsph,
-               "pf_global": pf_global}
+               "pf_global": pf_global, "wall_rate": wall_rate}
     for k in kernels.values():
         k.strides = (kf, kb)  # what passes() was called with (a compile check rebuilds them)
     return kernels

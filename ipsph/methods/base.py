@@ -10,6 +10,7 @@ from __future__ import annotations
 import time
 from contextlib import contextmanager
 from dataclasses import dataclass, field, fields, is_dataclass, replace
+from types import SimpleNamespace
 
 from ..backends import Backend
 from ..boundary import Boundary
@@ -163,7 +164,9 @@ class Method:
         applied: the PF multipliers `lam` and the DFSPH-type stiffness totals `k` (rigid.WallDriver)."""
         if self.walls is not None:
             be = self.be
-            self.walls.reaction(be.to_host(self.state.x), self.lists, dt,
+            nl = self.lists   # the wall lists on the host (a device backend's are device arrays)
+            walls_nl = SimpleNamespace(boundary=be.to_host(nl.boundary), boundary_count=be.to_host(nl.boundary_count))
+            self.walls.reaction(be.to_host(self.state.x), walls_nl, dt,
                                 None if lam is None else be.to_host(lam), tuple(be.to_host(a) for a in k))
 
     @property
