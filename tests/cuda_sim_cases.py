@@ -120,18 +120,18 @@ def case_emitters(steps: int = 14) -> dict:
 
 
 def paddle_and_crate(method: str, r: float = 0.04):
-    """test_moving_walls's checkpoint scene at r = 0.04 (48 fluid particles) in a tank, a paddle
+    """test_moving_walls's checkpoint scene at r = 0.04 (44 fluid particles) in a tank, a paddle
     on a sinusoid (a kinematic wall: amplitude 0.05 m, period 0.5 s) and a floating crate (a rigid
-    body of density 500 driven by the fluid's reaction), held under the surface so that the
-    fluid's hydrostatic pressure pushes it from the first steps (its walls sit 0.1 d inside its box
-    and the fluid starts 1.5 d from them: at the surface nothing would touch it in 8 steps)."""
+    body of density 500 driven by the fluid's reaction), set into the fluid off its lattice: a
+    crate face on the lattice puts fluid-wall pairs exactly at the support radius, where the two
+    backends' last bits decide whether the first touch happens this step or the next."""
     return scene_from_dict({
         "simulation": {"method": method, "particle_radius": r, "end_time": 1.0},
         "fluid": [{"box": {"min": [0, 0, 0], "max": [0.6, 0.3, 0.4]}}],
         "boundary": [{"name": "tank", "box": {"min": [0, 0, 0], "max": [1.0, 0.6, 0.4]}},
                      {"name": "paddle", "role": "obstacle", "box": {"min": [0.7, 0, 0], "max": [0.75, 0.6, 0.4]},
                       "motion": {"type": "sinusoid", "amplitude": 0.05, "period": 0.5}},
-                     {"name": "crate", "role": "obstacle", "box": {"min": [0.2, 0.15, 0.1], "max": [0.4, 0.25, 0.3]},
+                     {"name": "crate", "role": "obstacle", "box": {"min": [0.213, 0.207, 0.107], "max": [0.413, 0.307, 0.307]},
                       "density": 500.0}],
         "render": {"enabled": False}}, name=f"paddle-{method}")
 

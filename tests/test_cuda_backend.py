@@ -204,12 +204,16 @@ def _finish(p):
     return p
 
 
+# settle = "off": the runs start from the sampled lattice. The pre-pass (simulation.settle, on by
+# default for this tank) is ~1,000 steps on the pure-Python simulator, and it stops at its first
+# quiet step: a threshold the CPU and the GPU can cross a step apart, so the CPU -> GPU resume
+# would compare two different starts.
 TINY = """name = "tiny"
 [simulation]
 method = "ipsph"
 particle_radius = 0.025
 fit_wall_volumes = true
-settle = "off"   # each backend would settle its own way (thousands of steps): compare from the sampled start
+settle = "off"
 [time_step]
 dt_max = 0.005
 [output]
