@@ -164,13 +164,7 @@ class NeighbourSearch:
                 f"neighbour search: the particles spread over {ext[0]:.3g} x {ext[1]:.3g} x {ext[2]:.3g} m "
                 f"({grid.n_cells:.3g} cells); a particle has run away")
         self.grid = grid
-        # sort the boundary into the new grid (stable, deterministic)
-        cells = np.empty(len(xb), dtype=np.int64)
-        cell_ids(xb, grid.origin, grid.inv_cell, grid.dims, cells)
-        order = np.empty(len(xb), dtype=np.int64)
-        start = counting_sort(cells, grid.n_cells, order)
-        self.boundary.reorder(order)
-        self.use_boundary_sort(start)
+        self._sort_walls()
 
     def use_boundary_sort(self, boundary_start: np.ndarray) -> None:
         """Given the walls' cell offsets in the current grid, list each cell's wall candidates
@@ -192,7 +186,12 @@ class NeighbourSearch:
             self.grid = None
             self._fit_grid(x_fluid)   # a grid over fluid and walls, the walls sorted into it
             return
-        g = self.grid
+        self._sort_walls()
+
+    def _sort_walls(self) -> None:
+        """Sort the walls into the current grid (stable, deterministic) and list each cell's wall
+        candidates."""
+        xb, g = self.boundary.x, self.grid
         cells = np.empty(len(xb), dtype=np.int64)
         cell_ids(xb, g.origin, g.inv_cell, g.dims, cells)
         order = np.empty(len(xb), dtype=np.int64)

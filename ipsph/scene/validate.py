@@ -151,14 +151,9 @@ def _build_scene(data: dict, base_dir: Path, name: str | None, source: Path | No
         raise
     boundaries = tuple(_entity(ctx, "boundary", i, e, base_dir, r)
                        for i, e in enumerate(_entity_list(ctx, data, "boundary")))
-    for kind, items in (("fluid", fluids), ("boundary", boundaries)):
-        seen: dict[str, int] = {}
-        for i, item in enumerate(items):
-            if item.name in seen:
-                raise ctx.fail(f"{kind}[{i}].name", f"{item.name!r} is already the name of "
-                               f"{kind}[{seen[item.name]}]; names must be unique")
-            seen[item.name] = i
     from . import flow
+    for kind, items in (("fluid", fluids), ("boundary", boundaries)):
+        flow.unique_names(ctx, kind, items)
     end_time = kw.get("end_time", default("simulation.end_time"))
     emitters = tuple(flow.emitter_entity(ctx, _walk, _ENTITY_TREES["emitter"], i, e, r, end_time)
                      for i, e in enumerate(_entity_list(ctx, data, "emitter")))
