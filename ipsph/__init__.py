@@ -1,4 +1,5 @@
 """ipsph: Incompressible Projective SPH (and the PF and DFSPH references) in Numba."""
+
 __version__ = "0.1.0"
 
 __all__ = ["__version__", "Simulation", "load_scene", "sweep"]
@@ -7,11 +8,14 @@ __all__ = ["__version__", "Simulation", "load_scene", "sweep"]
 def __getattr__(name):  # lazy: importing ipsph must stay cheap and side-effect free
     if name == "Simulation":
         from .simulation import Simulation
+
         return Simulation
     if name == "load_scene":
         from .scene import load_scene
+
         return load_scene
     if name == "sweep":
         from .ensemble import sweep
+
         return sweep
     raise AttributeError(name)

@@ -15,6 +15,7 @@ Given the scene's rest lattice (`sampling.rest_lattice`: the fluid's lattice con
 free space near the walls), the Akinci volumes are then corrected so that fluid at rest reads
 rho0 next to walls too, along edges and in corners included (`fit_volumes`, method.md section 1).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -95,8 +96,9 @@ def radius_lists(xq: np.ndarray, points: np.ndarray, radius: float) -> tuple[np.
     while True:
         nbr = np.zeros((len(xq), k), dtype=np.int32)
         cnt = np.zeros(len(xq), dtype=np.int32)
-        most = gather_neighbours(xs if same else xq, xs, start, grid.origin, grid.inv_cell, grid.dims,
-                                 radius, same, False, nbr, cnt)
+        most = gather_neighbours(
+            xs if same else xq, xs, start, grid.origin, grid.inv_cell, grid.dims, radius, same, False, nbr, cnt
+        )
         if most <= k:
             return order, nbr, cnt
         k = int(most + 16)
@@ -113,8 +115,9 @@ FIT_ITERATIONS = 400
 FIT_MAX_RATIO = 1.05
 
 
-def fit_volumes(xb: np.ndarray, psi_akinci: np.ndarray, lattice: np.ndarray, spacing: float, h: float
-                ) -> tuple[np.ndarray, dict]:
+def fit_volumes(
+    xb: np.ndarray, psi_akinci: np.ndarray, lattice: np.ndarray, spacing: float, h: float
+) -> tuple[np.ndarray, dict]:
     """Wall volumes psi >= 0 with which the rest lattice reads rho0 next to the walls.
 
     For every lattice point i within H of a wall particle the walls must supply what the lattice
@@ -139,7 +142,7 @@ def fit_volumes(xb: np.ndarray, psi_akinci: np.ndarray, lattice: np.ndarray, spa
     # fluid part of the rest density at the probes (the self term arrives as W(0) at distance 0)
     wf = np.zeros(fnbr.shape)
     kernel_rows(xs_lat, xs_lat, fnbr, fcnt, h, wf)
-    fluid = spacing ** 3 * (wf.sum(axis=1) + w(0.0, h))
+    fluid = spacing**3 * (wf.sum(axis=1) + w(0.0, h))
     # the probes were gathered in lattice order; restrict to those near walls
     nbr, cnt = np.ascontiguousarray(bnbr[probes]), np.ascontiguousarray(bcnt[probes])
     a = np.zeros(nbr.shape)
@@ -181,9 +184,14 @@ def fit_volumes(xb: np.ndarray, psi_akinci: np.ndarray, lattice: np.ndarray, spa
     psi_sorted = np.clip(p0 + x, 0.0, FIT_MAX_RATIO * p0)
     _rows_dot(nbr, cnt, a, psi_sorted, ap)
     rest = fluid[probes] + ap
-    report.update(iterations=it, rest_density=(float(rest.min()), float(rest.max())),
-                  volume_ratio=(float((psi_sorted / np.maximum(p0, 1e-300)).min()),
-                                float((psi_sorted / np.maximum(p0, 1e-300)).max())))
+    report.update(
+        iterations=it,
+        rest_density=(float(rest.min()), float(rest.max())),
+        volume_ratio=(
+            float((psi_sorted / np.maximum(p0, 1e-300)).min()),
+            float((psi_sorted / np.maximum(p0, 1e-300)).max()),
+        ),
+    )
     psi = np.empty(len(xb))
     psi[bord] = psi_sorted
     return psi, report
@@ -197,14 +205,21 @@ class Boundary:
     volumes are computed per group. Without groups every wall is static (`moving` False, `v` 0).
     """
 
-    def __init__(self, x: np.ndarray, support: float, rho0: float, rest_lattice: np.ndarray | None = None,
-                 spacing: float | None = None, groups: np.ndarray | None = None):
-        self.x = np.array(x, dtype=np.float64).reshape(-1, 3)   # a copy: moving walls write into it
+    def __init__(
+        self,
+        x: np.ndarray,
+        support: float,
+        rho0: float,
+        rest_lattice: np.ndarray | None = None,
+        spacing: float | None = None,
+        groups: np.ndarray | None = None,
+    ):
+        self.x = np.array(x, dtype=np.float64).reshape(-1, 3)  # a copy: moving walls write into it
         self.h = float(support)
         self.rho0 = float(rho0)
         self.v = np.zeros_like(self.x)
         self.groups = None if groups is None else np.ascontiguousarray(groups, dtype=np.int32)
-        self.x0 = None if groups is None else self.x.copy()   # placement at t = 0 (moving walls)
+        self.x0 = None if groups is None else self.x.copy()  # placement at t = 0 (moving walls)
         self.moving = self.groups is not None and bool(np.any(self.groups > 0))
         self.psi = self._volumes()
         self.fit_report: dict = {}
@@ -212,8 +227,13 @@ class Boundary:
             # static walls only: moving walls and bodies keep Akinci's volumes (the fit lightens walls,
             # and a lightened body let a sinking 2000 kg/m^3 sphere fill with fluid, method.md section 9)
             fixed = slice(None) if self.groups is None else np.flatnonzero(self.groups == 0)
-            psi_fit, self.fit_report = fit_volumes(np.ascontiguousarray(self.x[fixed]), self.psi[fixed],
-                                                   rest_lattice, self.h / 2.0 if spacing is None else spacing, self.h)
+            psi_fit, self.fit_report = fit_volumes(
+                np.ascontiguousarray(self.x[fixed]),
+                self.psi[fixed],
+                rest_lattice,
+                self.h / 2.0 if spacing is None else spacing,
+                self.h,
+            )
             if self.groups is None:
                 self.psi = psi_fit
             else:
@@ -257,7 +277,7 @@ class Boundary:
     def load_state_dict(self, d: dict[str, np.ndarray]) -> None:
         if len(d["x"]) != len(self.x):
             raise ValueError(f"saved boundary has {len(d['x'])} particles, this scene {len(self.x)}")
-        self.x = np.array(d["x"], dtype=np.float64)   # a copy: moving walls write into it
+        self.x = np.array(d["x"], dtype=np.float64)  # a copy: moving walls write into it
         self.psi = np.ascontiguousarray(d["psi"], dtype=np.float64)
         self.m = np.ascontiguousarray(d["m"], dtype=np.float64)
         if self.moving:

@@ -23,6 +23,7 @@ fluid plus every layer every emitter can emit by simulation.end_time, checked ag
 on views of the active count n (`Method.resize`); a scene without emitters has capacity n and
 runs exactly as before.
 """
+
 from __future__ import annotations
 
 import math
@@ -43,16 +44,17 @@ def _unit(v) -> np.ndarray:
 @dataclass(frozen=True)
 class Nozzle:
     """One emitter resolved at a particle radius: its frame, the layer's lattice and its schedule."""
+
     spec: EmitterSpec
-    origin: np.ndarray      # (3,) outlet centre
-    axis: np.ndarray        # (3,) unit emission direction e
-    across: np.ndarray      # (2, 3) the outlet's width and height directions (unit, perpendicular to e)
-    offsets: np.ndarray     # (k, 2) the layer's lattice points in (width, height) coordinates [m]
-    half: np.ndarray        # (2,) box: half extents of the guide's cross-section; circle: (R, R)
-    interval: float         # d / v: seconds between layers
+    origin: np.ndarray  # (3,) outlet centre
+    axis: np.ndarray  # (3,) unit emission direction e
+    across: np.ndarray  # (2, 3) the outlet's width and height directions (unit, perpendicular to e)
+    offsets: np.ndarray  # (k, 2) the layer's lattice points in (width, height) coordinates [m]
+    half: np.ndarray  # (2,) box: half extents of the guide's cross-section; circle: (R, R)
+    interval: float  # d / v: seconds between layers
     start: float
-    end: float              # last time a layer may be due
-    layers: int             # layers due by `end`
+    end: float  # last time a layer may be due
+    layers: int  # layers due by `end`
 
     @property
     def per_layer(self) -> int:
@@ -70,8 +72,12 @@ class Nozzle:
 
     def layer_points(self, ahead: float) -> np.ndarray:
         """The layer's positions `ahead` metres in front of the outlet."""
-        return (self.origin + ahead * self.axis + self.offsets[:, :1] * self.across[0]
-                + self.offsets[:, 1:] * self.across[1])
+        return (
+            self.origin
+            + ahead * self.axis
+            + self.offsets[:, :1] * self.across[0]
+            + self.offsets[:, 1:] * self.across[1]
+        )
 
     def local(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(along-axis coordinate s, lateral coordinates (n, 2)) of points relative to the outlet."""
@@ -89,13 +95,16 @@ def nozzle(spec: EmitterSpec, r: float, end_time: float) -> Nozzle:
     d = spacing(r)
     e = _unit(spec.direction)
     if spec.shape == "box":
-        hint = np.asarray(spec.height_axis if spec.height_axis is not None else
-                          ((0.0, 0.0, 1.0) if abs(e[1]) > 0.9 else (0.0, 1.0, 0.0)), dtype=np.float64)
+        hint = np.asarray(
+            spec.height_axis
+            if spec.height_axis is not None
+            else ((0.0, 0.0, 1.0) if abs(e[1]) > 0.9 else (0.0, 1.0, 0.0)),
+            dtype=np.float64,
+        )
         h = _unit(hint - np.dot(hint, e) * e)
         w = np.cross(e, h)  # SPlisHSPlasH's rotation columns: direction, height, width
         nw, nh = (max(1, int(math.floor(x / d + 0.5))) for x in (spec.width, spec.height))
-        gw, gh = np.meshgrid((np.arange(nw) - 0.5 * (nw - 1)) * d, (np.arange(nh) - 0.5 * (nh - 1)) * d,
-                             indexing="ij")
+        gw, gh = np.meshgrid((np.arange(nw) - 0.5 * (nw - 1)) * d, (np.arange(nh) - 0.5 * (nh - 1)) * d, indexing="ij")
         offsets = np.column_stack([gw.ravel(), gh.ravel()])
         half = np.array([0.5 * nw * d, 0.5 * nh * d])
     else:
@@ -106,13 +115,23 @@ def nozzle(spec: EmitterSpec, r: float, end_time: float) -> Nozzle:
         c = (np.arange(m) - 0.5 * (m - 1)) * d
         gw, gh = np.meshgrid(c, c, indexing="ij")
         offsets = np.column_stack([gw.ravel(), gh.ravel()])
-        offsets = offsets[np.einsum("ij,ij->i", offsets, offsets) <= spec.radius ** 2 * (1 + 1e-12)]
+        offsets = offsets[np.einsum("ij,ij->i", offsets, offsets) <= spec.radius**2 * (1 + 1e-12)]
         half = np.array([spec.radius, spec.radius])
     interval = d / spec.velocity
     end = min(spec.end_time if spec.end_time is not None else end_time, end_time)
     layers = int(math.floor((end - spec.start_time) / interval + 1e-9)) + 1
-    return Nozzle(spec, np.asarray(spec.position, dtype=np.float64), e, np.stack([w, h]), offsets, half,
-                  interval, float(spec.start_time), float(end), layers)
+    return Nozzle(
+        spec,
+        np.asarray(spec.position, dtype=np.float64),
+        e,
+        np.stack([w, h]),
+        offsets,
+        half,
+        interval,
+        float(spec.start_time),
+        float(end),
+        layers,
+    )
 
 
 def nozzles(scene: Scene) -> list[Nozzle]:
@@ -131,11 +150,13 @@ def check_capacity(scene: Scene, n_fluid: int, limit: int) -> int:
         total += n.layers * n.per_layer
         if total > limit:
             from .preflight import BYTES_PER_PARTICLE
+
             raise ConfigError(
                 f"emitter[{i}] '{n.spec.name}' would emit {n.layers * n.per_layer:,} particles ({n.per_layer} per "
                 f"layer, {n.layers} layers from t = {n.start:g} to {n.end:g} s): with the rest the run needs "
                 f"{total:,} particles ({total * BYTES_PER_PARTICLE / 2**30:.1f} GiB), over the limit of {limit:,} "
-                f"(--max-particles); shorten emitter[{i}].end_time, lower its velocity or size, or add a sink")
+                f"(--max-particles); shorten emitter[{i}].end_time, lower its velocity or size, or add a sink"
+            )
     return total
 
 
@@ -158,9 +179,11 @@ def check_resumed_capacity(scene: Scene, n_now: int, flow_state: dict | None, li
     """ConfigError when a resumed run would exceed `limit` (--max-particles) by its end_time."""
     total = resumed_capacity(scene, n_now, flow_state)
     if total > limit:
-        raise ConfigError(f"--resume: the run holds {n_now:,} particles and its emitters would add "
-                          f"{total - n_now:,} more by simulation.end_time = {scene.end_time:g} s: {total:,} in all, "
-                          f"over the limit of {limit:,} (--max-particles); resume with an earlier --end-time")
+        raise ConfigError(
+            f"--resume: the run holds {n_now:,} particles and its emitters would add "
+            f"{total - n_now:,} more by simulation.end_time = {scene.end_time:g} s: {total:,} in all, "
+            f"over the limit of {limit:,} (--max-particles); resume with an earlier --end-time"
+        )
     return total
 
 
@@ -168,19 +191,23 @@ def wall_notes(scene: Scene, boundary_x: np.ndarray) -> list[str]:
     """One line per nozzle whose first two layers would come closer than 2r to a wall particle
     (the layer would start inside the wall's support and be pushed off violently)."""
     from .point_kernels import nearest_distance
+
     notes = []
     d = spacing(scene.particle_radius)
     for i, nz in enumerate(nozzles(scene)):
         pts = np.concatenate([nz.layer_points(0.0), nz.layer_points(d)])
         near = float(nearest_distance(pts, boundary_x, d).min()) if len(boundary_x) else math.inf
         if near < d:
-            notes.append(f"emitter[{i}] '{nz.spec.name}': its first layers come within {near:.3g} m of a wall "
-                         f"(closer than 2r = {d:g} m): move the nozzle away from the wall or make it smaller")
+            notes.append(
+                f"emitter[{i}] '{nz.spec.name}': its first layers come within {near:.3g} m of a wall "
+                f"(closer than 2r = {d:g} m): move the nozzle away from the wall or make it smaller"
+            )
     return notes
 
 
 def _container_bounds(scene: Scene) -> list[tuple[np.ndarray, np.ndarray]]:
     from .sampling import boundary_surface
+
     out = []
     for b in scene.boundaries:
         if b.role == Role.CONTAINER:
@@ -200,11 +227,16 @@ def check_placement(scene: Scene) -> None:
     for i, e in enumerate(scene.emitters):
         p = np.asarray(e.position)
         if not any(np.all(p >= lo) and np.all(p <= hi) for lo, hi in boxes):
-            where = "no container and no [domain] box" if not boxes else \
-                "outside every container's bounds" + (" and the [domain] box" if dom.min is not None else "")
-            raise ConfigError(f"emitter[{i}].position: [{', '.join(f'{c:g}' for c in p)}] of emitter "
-                              f"'{e.name}' is {where}; move it inside a [[boundary]] container or give a "
-                              f"[domain] box around it")
+            where = (
+                "no container and no [domain] box"
+                if not boxes
+                else "outside every container's bounds" + (" and the [domain] box" if dom.min is not None else "")
+            )
+            raise ConfigError(
+                f"emitter[{i}].position: [{', '.join(f'{c:g}' for c in p)}] of emitter "
+                f"'{e.name}' is {where}; move it inside a [[boundary]] container or give a "
+                f"[domain] box around it"
+            )
 
 
 class Flow:
@@ -217,12 +249,12 @@ class Flow:
         self.nozzles = nozzles(scene)
         self.d = spacing(scene.particle_radius)
         self.h = support(scene.particle_radius)
-        self.mass = scene.density0 * self.d ** 3
+        self.mass = scene.density0 * self.d**3
         self.sinks = [(np.asarray(s.box_min), np.asarray(s.box_max)) for s in scene.sinks]
         dom = scene.domain
         self.domain = None if dom.min is None else (np.asarray(dom.min), np.asarray(dom.max))
         self.emitted_layers = [0] * len(self.nozzles)
-        self.late_layers = 0           # layers placed at least one step after they were due
+        self.late_layers = 0  # layers placed at least one step after they were due
         self.next_id = int(first_id)
         self.emitted = 0
         self.removed = 0
@@ -311,8 +343,13 @@ class Flow:
 
     # -- saved state ------------------------------------------------------------------------
     def state_dict(self) -> dict:
-        return {"emitted_layers": list(self.emitted_layers), "next_id": self.next_id, "emitted": self.emitted,
-                "removed": self.removed, "late_layers": self.late_layers}
+        return {
+            "emitted_layers": list(self.emitted_layers),
+            "next_id": self.next_id,
+            "emitted": self.emitted,
+            "removed": self.removed,
+            "late_layers": self.late_layers,
+        }
 
     def load_state_dict(self, d: dict) -> None:
         if len(d["emitted_layers"]) != len(self.nozzles):
@@ -323,8 +360,19 @@ class Flow:
 
     def summary(self) -> dict:
         """run.json's `flow`: totals of the run so far."""
-        return {"emitted": self.emitted, "removed": self.removed, "late_layers": self.late_layers,
-                "next_id": self.next_id,
-                "emitters": [{"name": n.spec.name, "layers": k, "per_layer": n.per_layer, "planned_layers": n.layers,
-                              "mass_rate_kg_s": self.mass * n.per_layer / n.interval}
-                             for n, k in zip(self.nozzles, self.emitted_layers)]}
+        return {
+            "emitted": self.emitted,
+            "removed": self.removed,
+            "late_layers": self.late_layers,
+            "next_id": self.next_id,
+            "emitters": [
+                {
+                    "name": n.spec.name,
+                    "layers": k,
+                    "per_layer": n.per_layer,
+                    "planned_layers": n.layers,
+                    "mass_rate_kg_s": self.mass * n.per_layer / n.interval,
+                }
+                for n, k in zip(self.nozzles, self.emitted_layers)
+            ],
+        }

@@ -7,11 +7,13 @@ naturally; the CLI prints `str(exc)` as one line and exits with the class's `exi
 
 class IpsphError(Exception):
     """Base of every error ipsph raises on purpose."""
+
     exit_code = 1
 
 
 class InputError(IpsphError, ValueError):
     """Bad input of any kind: reported before any large allocation or output (exit 2)."""
+
     exit_code = 2
 
 
@@ -29,11 +31,13 @@ class OutputError(InputError):
 
 class NumericalFailure(IpsphError, RuntimeError):
     """The simulation diverged (NaN/Inf, escaped particles): exit 3, finished frames kept."""
+
     exit_code = 3
 
 
 class WriteError(IpsphError, OSError):
     """Writing a frame failed (disk full, ...): earlier frames stay intact."""
+
     exit_code = 4
 
 
@@ -46,8 +50,10 @@ EXIT_INTERRUPTED = 130
 def read_text(path, where: str, what: str = "scene file") -> str:
     """A text file's contents, or a one-line ConfigError naming it as given and as resolved."""
     from pathlib import Path
+
     try:
         return Path(path).read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"{where}: cannot read {what} (resolved: {Path(path).resolve()}): "
-                          f"{' '.join(str(exc).split())}") from exc
+        raise ConfigError(
+            f"{where}: cannot read {what} (resolved: {Path(path).resolve()}): {' '.join(str(exc).split())}"
+        ) from exc

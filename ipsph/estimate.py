@@ -8,20 +8,22 @@ simulated second come from the time-step rule at the fastest speed the scene can
 falling (sqrt(2 g H), H the height from the lowest wall or fluid to the highest fluid), so the
 estimate errs long. The live progress line replaces it with the run's own rate (`eta_seconds`).
 """
+
 from __future__ import annotations
 
 import math
 
 from .errors import ConfigError
 
-US_PER_PARTICLE_STEP_2_THREADS = 2.5   # calibrated, see above
-SAY_ABOVE_S = 600.0                    # print the estimate when the run should take longer than this
-ASK_ABOVE_S = 3600.0                   # and require --yes (when not on a terminal) above this
+US_PER_PARTICLE_STEP_2_THREADS = 2.5  # calibrated, see above
+SAY_ABOVE_S = 600.0  # print the estimate when the run should take longer than this
+ASK_ABOVE_S = 3600.0  # and require --yes (when not on a terminal) above this
 
 
 def steps_per_sim_second(scene) -> float:
     """1 / dt at the fastest fall speed the scene allows (CFL rule, within [dt_min, dt_max])."""
     import numpy as np
+
     r = scene.particle_radius
     g = float(np.linalg.norm(scene.gravity))
     lows, highs, v0 = [], [], 0.0
@@ -45,6 +47,7 @@ def steps_per_sim_second(scene) -> float:
 def _bounds(spec):
     """(min, max) corners of a box or mesh body after its transform, or None when unknown."""
     import numpy as np
+
     if getattr(spec, "shape", None) == "box" and spec.box_min is not None:
         s = np.asarray(spec.transform.scale)
         lo, hi = np.asarray(spec.box_min) * s, np.asarray(spec.box_max) * s
@@ -52,6 +55,7 @@ def _bounds(spec):
         return np.minimum(lo, hi) + t, np.maximum(lo, hi) + t
     try:
         from .meshes import load_mesh, transform_mesh
+
         b = np.asarray(transform_mesh(load_mesh(spec.mesh), spec.transform).bounds).reshape(3, 2)
     except Exception:
         return None
@@ -61,6 +65,7 @@ def _bounds(spec):
 def load_factor() -> float:
     """How much slower than quiet this machine is now: other jobs' 1-minute load per core (>= 1)."""
     import os
+
     try:
         return max(1.0, os.getloadavg()[0] / len(os.sched_getaffinity(0)))
     except (OSError, AttributeError):  # pragma: no cover - not on Linux
@@ -95,12 +100,16 @@ def announce(scene, n_fluid: int, threads: int, *, yes: bool, interactive: bool,
     if total <= SAY_ABOVE_S:
         return total
     busy = f", this machine {load:.1f}x busy" if load > 1.05 else ""
-    line = (f"about {n_fluid:,} fluid particles: roughly {fmt_duration(per_sim)} per simulated second on "
-            f"{threads} thread(s){busy}, {fmt_duration(total)} for end_time {scene.end_time:g} s (an estimate; "
-            f"the progress line gives the measured ETA)")
+    line = (
+        f"about {n_fluid:,} fluid particles: roughly {fmt_duration(per_sim)} per simulated second on "
+        f"{threads} thread(s){busy}, {fmt_duration(total)} for end_time {scene.end_time:g} s (an estimate; "
+        f"the progress line gives the measured ETA)"
+    )
     if total > ASK_ABOVE_S and not interactive and not yes:
-        raise ConfigError(f"{line}; over {fmt_duration(ASK_ABOVE_S)} and not on a terminal: pass --yes to "
-                          f"run it anyway, or a larger simulation.particle_radius / shorter --end-time")
+        raise ConfigError(
+            f"{line}; over {fmt_duration(ASK_ABOVE_S)} and not on a terminal: pass --yes to "
+            f"run it anyway, or a larger simulation.particle_radius / shorter --end-time"
+        )
     log(f"ipsph: note: {line}")
     return total
 

@@ -5,6 +5,7 @@ degrades gracefully for open or self-intersecting ones. Exact, and a clustered f
 approximation for many points (`fast_winding_number`); `inside_mesh` labels whole grid cells
 far from the surface and evaluates w only near it.
 """
+
 from __future__ import annotations
 
 import math
@@ -27,8 +28,12 @@ def _solid_angle(t, tri_a, tri_b, tri_c, px, py, pz):
     lb = math.sqrt(bx * bx + by * by + bz * bz)
     lc = math.sqrt(cx * cx + cy * cy + cz * cz)
     det = ax * (by * cz - bz * cy) - ay * (bx * cz - bz * cx) + az * (bx * cy - by * cx)
-    den = (la * lb * lc + (ax * bx + ay * by + az * bz) * lc
-           + (bx * cx + by * cy + bz * cz) * la + (cx * ax + cy * ay + cz * az) * lb)
+    den = (
+        la * lb * lc
+        + (ax * bx + ay * by + az * bz) * lc
+        + (bx * cx + by * cy + bz * cz) * la
+        + (cx * ax + cy * ay + cz * az) * lb
+    )
     return 2.0 * math.atan2(det, den)
 
 
@@ -48,8 +53,13 @@ def winding_number(points: np.ndarray, mesh) -> np.ndarray:
     q = np.ascontiguousarray(np.asarray(points, dtype=np.float64).reshape(-1, 3))
     out = np.zeros(len(q), dtype=np.float64)
     if len(q) and len(faces):
-        _winding_kernel(q, np.ascontiguousarray(pts[faces[:, 0]]), np.ascontiguousarray(pts[faces[:, 1]]),
-                        np.ascontiguousarray(pts[faces[:, 2]]), out)
+        _winding_kernel(
+            q,
+            np.ascontiguousarray(pts[faces[:, 0]]),
+            np.ascontiguousarray(pts[faces[:, 1]]),
+            np.ascontiguousarray(pts[faces[:, 2]]),
+            out,
+        )
     return out
 
 
@@ -141,14 +151,15 @@ def inside_mesh(points: np.ndarray, mesh, spacing: float, *, closed: bool = True
         return result
     h = float(spacing)
     origin = lo - h
-    dims = (np.ceil((hi - lo) / h).astype(np.int64) + 3)
+    dims = np.ceil((hi - lo) / h).astype(np.int64) + 3
     ref = pv.ImageData(dimensions=tuple(int(v) for v in dims), spacing=(h, h, h), origin=tuple(origin))
     mask = np.asarray(mesh.voxelize_binary_mask(reference_volume=ref)["mask"]).astype(bool)
     mask = mask.reshape(dims[2], dims[1], dims[0]).transpose(2, 1, 0)
     tri = pts[faces]
     near = np.zeros(tuple(int(v) - 1 for v in dims), dtype=np.bool_)
-    _mark_near_cells(np.ascontiguousarray(tri.min(axis=1)), np.ascontiguousarray(tri.max(axis=1)),
-                     origin, h, 1e-6 * h, near)
+    _mark_near_cells(
+        np.ascontiguousarray(tri.min(axis=1)), np.ascontiguousarray(tri.max(axis=1)), origin, h, 1e-6 * h, near
+    )
     qs = q[sel]
     cell = np.floor((qs - origin) / h).astype(np.int64)
     cell = np.clip(cell, 0, dims - 2)
@@ -224,13 +235,25 @@ def fast_winding_number(points: np.ndarray, mesh) -> np.ndarray:
     tri_cen = tri.mean(axis=1)
     c_c = np.stack([np.bincount(seg, weights=area * tri_cen[:, k], minlength=len(uniq)) for k in range(3)], axis=1)
     plain = np.stack([np.bincount(seg, weights=tri_cen[:, k], minlength=len(uniq)) for k in range(3)], axis=1)
-    c_c = np.where(w_c[:, None] > 0, c_c / np.where(w_c > 0, w_c, 1.0)[:, None],
-                   plain / np.bincount(seg, minlength=len(uniq))[:, None])
+    c_c = np.where(
+        w_c[:, None] > 0,
+        c_c / np.where(w_c > 0, w_c, 1.0)[:, None],
+        plain / np.bincount(seg, minlength=len(uniq))[:, None],
+    )
     vert_dist = np.linalg.norm(tri - c_c[seg][:, None, :], axis=2).max(axis=1)
     rad = np.zeros(len(uniq))
     np.maximum.at(rad, seg, vert_dist)
     out = np.zeros(len(q))
-    _fast_winding_kernel(q, np.ascontiguousarray(tri[:, 0]), np.ascontiguousarray(tri[:, 1]),
-                         np.ascontiguousarray(tri[:, 2]), start, np.ascontiguousarray(c_c),
-                         np.ascontiguousarray(a_c), rad, FAR_FACTOR, out)
+    _fast_winding_kernel(
+        q,
+        np.ascontiguousarray(tri[:, 0]),
+        np.ascontiguousarray(tri[:, 1]),
+        np.ascontiguousarray(tri[:, 2]),
+        start,
+        np.ascontiguousarray(c_c),
+        np.ascontiguousarray(a_c),
+        rad,
+        FAR_FACTOR,
+        out,
+    )
     return out

@@ -9,6 +9,7 @@
 These are plain numba functions inlined into every neighbour loop; they take H and
 never read globals, so a second backend (numba.cuda) can reuse the same formulas.
 """
+
 import math
 
 from numba import njit

@@ -2,6 +2,7 @@
 
 Every mesh leaving this module is a triangle-only `pyvista.PolyData` with merged points.
 """
+
 from __future__ import annotations
 
 import math
@@ -78,8 +79,7 @@ def _as_triangles(data) -> "pv.PolyData":
     if surf.n_cells and not surf.is_all_triangles:  # stray lines / vertices: keep the triangles
         import pyvista as pv
 
-        surf = surf.extract_cells_by_type(pv.CellType.TRIANGLE).extract_surface(
-            algorithm="dataset_surface").clean()
+        surf = surf.extract_cells_by_type(pv.CellType.TRIANGLE).extract_surface(algorithm="dataset_surface").clean()
     faces = surf.regular_faces if surf.n_cells else np.empty((0, 3), dtype=np.int64)
     return tri_mesh(np.asarray(surf.points, dtype=np.float64), faces)
 
@@ -147,8 +147,9 @@ def box_mesh(box_min: model.Vec3, box_max: model.Vec3) -> "pv.PolyData":
     hi = np.asarray(box_max, dtype=np.float64)
     if not np.all(hi > lo):
         raise MeshError(f"box: box_max {tuple(box_max)} must exceed box_min {tuple(box_min)} on every axis")
-    corners = np.array([[hi[0] if i & 1 else lo[0], hi[1] if i & 2 else lo[1], hi[2] if i & 4 else lo[2]]
-                        for i in range(8)])
+    corners = np.array(
+        [[hi[0] if i & 1 else lo[0], hi[1] if i & 2 else lo[1], hi[2] if i & 4 else lo[2]] for i in range(8)]
+    )
     quads = [(0, 2, 3, 1), (4, 5, 7, 6), (0, 1, 5, 4), (2, 6, 7, 3), (0, 4, 6, 2), (1, 3, 7, 5)]
     faces = [(a, b, c) for a, b, c, d in quads] + [(a, c, d) for a, b, c, d in quads]
     return tri_mesh(corners, np.array(faces))
@@ -191,14 +192,15 @@ def signed_volume(mesh) -> float:
 @dataclass(frozen=True)
 class MeshReport:
     """What prepare_mesh found: open/unpaired edge counts, volume after any flip, bounds, notes."""
+
     source: str
     n_points: int
     n_triangles: int
-    open_edges: int          # edges used by an odd number of triangles
+    open_edges: int  # edges used by an odd number of triangles
     non_manifold_edges: int  # edges used by more than two triangles (allowed when paired)
-    unpaired_edges: int      # 0 <=> closed oriented surface
-    volume: float            # signed volume after orientation fix (m^3)
-    flipped: bool            # triangles were reversed (the file's normals pointed inward)
+    unpaired_edges: int  # 0 <=> closed oriented surface
+    volume: float  # signed volume after orientation fix (m^3)
+    flipped: bool  # triangles were reversed (the file's normals pointed inward)
     bounds: tuple[float, float, float, float, float, float]
     notes: tuple[str, ...] = ()
 
@@ -207,8 +209,14 @@ class MeshReport:
         return self.unpaired_edges == 0
 
 
-def prepare_mesh(source, transform: model.Transform = model.Transform(), *, need_closed: bool = True,
-                 allow_open: bool = False, name: str | None = None) -> tuple["pv.PolyData", MeshReport]:
+def prepare_mesh(
+    source,
+    transform: model.Transform = model.Transform(),
+    *,
+    need_closed: bool = True,
+    allow_open: bool = False,
+    name: str | None = None,
+) -> tuple["pv.PolyData", MeshReport]:
     """Load (path) or take (PolyData) a mesh, transform it, check closedness, fix inverted normals.
 
     need_closed and not allow_open: a mesh with unpaired edges raises MeshError naming the count.
@@ -233,7 +241,8 @@ def prepare_mesh(source, transform: model.Transform = model.Transform(), *, need
     if n_unpaired and need_closed and not allow_open:
         raise MeshError(
             f"mesh {label}: not closed ({n_open} open edges, {n_unpaired} unpaired edges); "
-            "repair it, or allow an open mesh explicitly (allow_open_mesh = true)")
+            "repair it, or allow an open mesh explicitly (allow_open_mesh = true)"
+        )
     vol = signed_volume(mesh)
     b = mesh.bounds
     ext = np.array([b[1] - b[0], b[3] - b[2], b[5] - b[4]])
@@ -241,8 +250,10 @@ def prepare_mesh(source, transform: model.Transform = model.Transform(), *, need
     flipped = False
     if n_unpaired == 0:
         if not abs(vol) > ZERO_VOLUME_REL * cube:
-            raise MeshError(f"mesh {label}: encloses zero volume (bounds {tuple(round(float(v), 6) for v in b)}); "
-                            "a fluid or wall needs a solid shape")
+            raise MeshError(
+                f"mesh {label}: encloses zero volume (bounds {tuple(round(float(v), 6) for v in b)}); "
+                "a fluid or wall needs a solid shape"
+            )
         if vol < 0.0:
             pts, faces = mesh_arrays(mesh)
             mesh = tri_mesh(pts, faces[:, ::-1])
@@ -250,19 +261,32 @@ def prepare_mesh(source, transform: model.Transform = model.Transform(), *, need
             notes.append(f"mesh {label}: normals pointed inward (volume {-vol:.6g} m^3); triangles flipped")
     elif need_closed:
         notes.append(f"mesh {label}: open surface ({n_open} open edges) used as allowed; inside test by winding number")
-    report = MeshReport(source=label, n_points=int(mesh.n_points), n_triangles=int(mesh.n_cells),
-                        open_edges=n_open, non_manifold_edges=n_nonman, unpaired_edges=n_unpaired,
-                        volume=float(vol), flipped=flipped, bounds=tuple(float(v) for v in b),
-                        notes=tuple(notes))
+    report = MeshReport(
+        source=label,
+        n_points=int(mesh.n_points),
+        n_triangles=int(mesh.n_cells),
+        open_edges=n_open,
+        non_manifold_edges=n_nonman,
+        unpaired_edges=n_unpaired,
+        volume=float(vol),
+        flipped=flipped,
+        bounds=tuple(float(v) for v in b),
+        notes=tuple(notes),
+    )
     return mesh, report
 
 
 def _make_consistent(mesh):
     """vtkPolyDataNormals' consistency pass, or None when VTK cannot do it."""
     try:
-        fixed = mesh.compute_normals(consistent_normals=True, auto_orient_normals=False,
-                                     split_vertices=False, non_manifold_traversal=False,
-                                     cell_normals=False, point_normals=False)
+        fixed = mesh.compute_normals(
+            consistent_normals=True,
+            auto_orient_normals=False,
+            split_vertices=False,
+            non_manifold_traversal=False,
+            cell_normals=False,
+            point_normals=False,
+        )
         return tri_mesh(*mesh_arrays(fixed))
     except Exception:  # noqa: BLE001 - the caller reports the mesh as open instead
         return None

@@ -7,6 +7,7 @@ range and description is declared once, in `ipsph.params.PARAMS`: the config tab
 generated from it (`_section`), and the scene's and bodies' own fields read their defaults from
 it (`D(path)`).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field, make_dataclass
@@ -19,12 +20,13 @@ from .params import default as D
 Vec3 = tuple[float, float, float]
 
 Method = StrEnum("Method", {name.upper(): name for name in METHOD_NAMES})  # simulation.method
-Role = StrEnum("Role", {name.upper(): name for name in BOUNDARY_ROLES})    # boundary.role
+Role = StrEnum("Role", {name.upper(): name for name in BOUNDARY_ROLES})  # boundary.role
 
 
 @dataclass(frozen=True)
 class Transform:
     """x' = R (S x) + t: scale first, then rotate about `rotate_axis`, then translate."""
+
     translate: Vec3 = D("fluid.translate")
     scale: Vec3 = D("fluid.scale")
     rotate_axis: Vec3 = D("fluid.rotate_axis")
@@ -34,8 +36,9 @@ class Transform:
 @dataclass(frozen=True)
 class Body:
     """What a fluid body and a wall share: a name, and an axis-aligned box or a mesh file, placed."""
+
     name: str
-    shape: str                      # "box" | "mesh"
+    shape: str  # "box" | "mesh"
     box_min: Vec3 | None = None
     box_max: Vec3 | None = None
     mesh: Path | None = None
@@ -45,6 +48,7 @@ class Body:
 @dataclass(frozen=True)
 class FluidSpec(Body):
     """A fluid body ([[fluid]]): the box is filled with a lattice, a closed mesh's inside too."""
+
     velocity: Vec3 = D("fluid.velocity")
     allow_open_mesh: bool = D("fluid.allow_open_mesh")
 
@@ -52,6 +56,7 @@ class FluidSpec(Body):
 @dataclass(frozen=True)
 class Keyframe:
     """One keyframe of a wall's motion: its offset from the placement at `time`."""
+
     time: float
     translate: Vec3 = (0.0, 0.0, 0.0)
     rotate_axis: Vec3 = (0.0, 1.0, 0.0)
@@ -61,13 +66,14 @@ class Keyframe:
 @dataclass(frozen=True)
 class MotionSpec:
     """[boundary.motion]: a prescribed (kinematic) motion, evaluated by ipsph.motion."""
+
     type: str = D("boundary.motion.type")
     velocity: Vec3 = D("boundary.motion.velocity")
-    angular_velocity: Vec3 = D("boundary.motion.angular_velocity")   # deg/s
+    angular_velocity: Vec3 = D("boundary.motion.angular_velocity")  # deg/s
     pivot: Vec3 | None = D("boundary.motion.pivot")
     axis: Vec3 = D("boundary.motion.axis")
     amplitude: float = D("boundary.motion.amplitude")
-    angle_amplitude: float = D("boundary.motion.angle_amplitude")   # deg
+    angle_amplitude: float = D("boundary.motion.angle_amplitude")  # deg
     period: float | None = D("boundary.motion.period")
     phase_deg: float = D("boundary.motion.phase_deg")
     keyframes: tuple[Keyframe, ...] = ()
@@ -77,12 +83,13 @@ class MotionSpec:
 class BoundarySpec(Body):
     """A wall ([[boundary]]): a container (fluid inside) or an obstacle (fluid around); static,
     moving as prescribed (`motion`), or a dynamic rigid body (`density` or `mass` set)."""
+
     role: Role = Role(D("boundary.role"))
     motion: MotionSpec = MotionSpec()
     density: float | None = D("boundary.density")
     mass: float | None = D("boundary.mass")
     velocity: Vec3 = D("boundary.velocity")
-    angular_velocity: Vec3 = D("boundary.angular_velocity")   # deg/s
+    angular_velocity: Vec3 = D("boundary.angular_velocity")  # deg/s
 
     @property
     def dynamic(self) -> bool:
@@ -99,6 +106,7 @@ class BoundarySpec(Body):
 class EmitterSpec:
     """A nozzle ([[emitter]]): fluid layers leave `position` along `direction` at `velocity`
     from start_time to end_time (ipsph.emitters). Sizes in metres (width/height or radius)."""
+
     name: str
     position: Vec3
     shape: str = D("emitter.shape")
@@ -115,21 +123,33 @@ class EmitterSpec:
 @dataclass(frozen=True)
 class SinkSpec:
     """An outflow box ([[sink]]): fluid inside it is removed after every step."""
+
     name: str
     box_min: Vec3
     box_max: Vec3
 
 
-_TYPES = {"float": float, "int": int, "bool": bool, "choice": str, "str": str, "path": Path,
-          "vec3": tuple[float, float, float], "range2": tuple[float, float], "fields": tuple[str, ...]}
+_TYPES = {
+    "float": float,
+    "int": int,
+    "bool": bool,
+    "choice": str,
+    "str": str,
+    "path": Path,
+    "vec3": tuple[float, float, float],
+    "range2": tuple[float, float],
+    "fields": tuple[str, ...],
+}
 
 
 def _section(name: str, table: str, doc: str, nested: dict | None = None, **methods) -> type:
     """The frozen dataclass of one scene table: a field per parameter of `table` (its name, type
     and default as params.PARAMS declares them), then the sub-tables in `nested`."""
     own = [p for p in PARAMS if p.target.rpartition(".")[0] == table]
-    fields = [(p.target.rpartition(".")[2], _TYPES[p.kind] | None if p.optional else _TYPES[p.kind],
-               field(default=p.default)) for p in own]
+    fields = [
+        (p.target.rpartition(".")[2], _TYPES[p.kind] | None if p.optional else _TYPES[p.kind], field(default=p.default))
+        for p in own
+    ]
     fields += [(key, cls, field(default=cls())) for key, cls in (nested or {}).items()]
     return make_dataclass(name, fields, frozen=True, namespace={"__doc__": doc, "__module__": __name__, **methods})
 
@@ -139,20 +159,35 @@ def _resolved_dt_max(self, particle_radius: float) -> float:
     return self.dt_max if self.dt_max is not None else 0.005 * particle_radius / 0.025
 
 
-TimeStepConfig = _section("TimeStepConfig", "time_step", "[time_step]: the CFL step (method.md section 1).",
-                          resolved_dt_max=_resolved_dt_max)
-DivergenceConfig = _section("DivergenceConfig", "solver.divergence",
-                            "[solver.divergence]: DFSPH's divergence solve, also IPSPH's (method.md 2, 4).")
+TimeStepConfig = _section(
+    "TimeStepConfig", "time_step", "[time_step]: the CFL step (method.md section 1).", resolved_dt_max=_resolved_dt_max
+)
+DivergenceConfig = _section(
+    "DivergenceConfig",
+    "solver.divergence",
+    "[solver.divergence]: DFSPH's divergence solve, also IPSPH's (method.md 2, 4).",
+)
 DFSPHConfig = _section("DFSPHConfig", "solver.dfsph", "[solver.dfsph]: DFSPH's density solve (method.md 2).")
-PFConfig = _section("PFConfig", "solver.pf", "[solver.pf]: Projective Fluids (method.md 3); the stiffness is IPSPH's too.")
+PFConfig = _section(
+    "PFConfig", "solver.pf", "[solver.pf]: Projective Fluids (method.md 3); the stiffness is IPSPH's too."
+)
 IPSPHConfig = _section("IPSPHConfig", "solver.ipsph", "[solver.ipsph]: IPSPH's average-density loop (method.md 4).")
-SolverConfig = _section("SolverConfig", "solver", "[solver] and its per-method sub-tables.",
-                        {"divergence": DivergenceConfig, "dfsph": DFSPHConfig, "pf": PFConfig, "ipsph": IPSPHConfig})
+SolverConfig = _section(
+    "SolverConfig",
+    "solver",
+    "[solver] and its per-method sub-tables.",
+    {"divergence": DivergenceConfig, "dfsph": DFSPHConfig, "pf": PFConfig, "ipsph": IPSPHConfig},
+)
 OutputConfig = _section("OutputConfig", "output", "[output]: what is written, where, how often.")
 RenderConfig = _section("RenderConfig", "render", "[render]: the offscreen renders.")
-DomainConfig = _section("DomainConfig", "domain", "[domain]: the box outside which fluid is removed (both corners or none).")
-SurfaceConfig = _section("SurfaceConfig", "surface", "[surface]: surface reconstruction (splashsurf through "
-                         "ipsph.surface); lengths in multiples of r.")
+DomainConfig = _section(
+    "DomainConfig", "domain", "[domain]: the box outside which fluid is removed (both corners or none)."
+)
+SurfaceConfig = _section(
+    "SurfaceConfig",
+    "surface",
+    "[surface]: surface reconstruction (splashsurf through ipsph.surface); lengths in multiples of r.",
+)
 
 
 @dataclass(frozen=True)
@@ -180,5 +215,5 @@ class Scene:
     output: OutputConfig = OutputConfig()
     render: RenderConfig = RenderConfig()
     surface: SurfaceConfig = SurfaceConfig()
-    source: Path | None = None          # the scene file, if any
+    source: Path | None = None  # the scene file, if any
     warnings: tuple[str, ...] = field(default=(), compare=False)

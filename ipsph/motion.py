@@ -16,6 +16,7 @@ to O(VELOCITY_DT^2) for every motion type with one code path.
 
 Quaternions are (w, x, y, z) arrays (shared with the rigid bodies, ipsph.rigid).
 """
+
 from __future__ import annotations
 
 import math
@@ -40,8 +41,14 @@ def quat_axis_angle(axis, angle_rad: float) -> np.ndarray:
 def quat_mul(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     w1, x1, y1, z1 = p
     w2, x2, y2, z2 = q
-    return np.array([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-                     w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2])
+    return np.array(
+        [
+            w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
+            w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+            w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
+            w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
+        ]
+    )
 
 
 def quat_conj(q: np.ndarray) -> np.ndarray:
@@ -50,14 +57,18 @@ def quat_conj(q: np.ndarray) -> np.ndarray:
 
 def quat_matrix(q: np.ndarray) -> np.ndarray:
     w, x, y, z = q / np.linalg.norm(q)
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
 
 
 def slerp(p: np.ndarray, q: np.ndarray, u: float) -> np.ndarray:
     d = float(np.dot(p, q))
-    if d < 0.0:             # the short way round
+    if d < 0.0:  # the short way round
         q, d = -q, -d
     if d > 0.9995:
         r = p + u * (q - p)
@@ -110,8 +121,8 @@ class Motion:
                 return np.zeros(3)
             return (p[j + 1] - p[j - 1]) / (times[j + 1] - times[j - 1])
 
-        h00, h10 = 2 * u ** 3 - 3 * u ** 2 + 1, u ** 3 - 2 * u ** 2 + u
-        h01, h11 = -2 * u ** 3 + 3 * u ** 2, u ** 3 - u ** 2
+        h00, h10 = 2 * u**3 - 3 * u**2 + 1, u**3 - 2 * u**2 + u
+        h01, h11 = -2 * u**3 + 3 * u**2, u**3 - u**2
         tr = h00 * p[i] + h10 * h * tangent(i) + h01 * p[i + 1] + h11 * h * tangent(i + 1)
         qa = quat_axis_angle(keys[i].rotate_axis, math.radians(keys[i].rotate_deg))
         qb = quat_axis_angle(keys[i + 1].rotate_axis, math.radians(keys[i + 1].rotate_deg))

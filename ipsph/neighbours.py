@@ -17,14 +17,24 @@ more than K neighbours the build reports it and the caller grows K and rebuilds.
 
 `brute_force_neighbours` is the O(N M) oracle the tests compare against.
 """
+
 from __future__ import annotations
 
 import math
 
 import numpy as np
 
-from .backends.cpu_neighbours import (append_lower, bounds, cell_ids, counting_sort, counting_sort_into,
-                                      gather_neighbours, gather_walls, near_cells, _wall_candidate_pass)
+from .backends.cpu_neighbours import (
+    append_lower,
+    bounds,
+    cell_ids,
+    counting_sort,
+    counting_sort_into,
+    gather_neighbours,
+    gather_walls,
+    near_cells,
+    _wall_candidate_pass,
+)
 from .errors import NumericalFailure
 
 
@@ -162,7 +172,8 @@ class NeighbourSearch:
             ext = hi - lo
             raise NumericalFailure(
                 f"neighbour search: the particles spread over {ext[0]:.3g} x {ext[1]:.3g} x {ext[2]:.3g} m "
-                f"({grid.n_cells:.3g} cells); a particle has run away")
+                f"({grid.n_cells:.3g} cells); a particle has run away"
+            )
         self.grid = grid
         self._sort_walls()
 
@@ -184,7 +195,7 @@ class NeighbourSearch:
         lo, hi = bounds(xb) if len(xb) else (np.zeros(3), np.zeros(3))
         if not self.grid.contains(lo, hi):
             self.grid = None
-            self._fit_grid(x_fluid)   # a grid over fluid and walls, the walls sorted into it
+            self._fit_grid(x_fluid)  # a grid over fluid and walls, the walls sorted into it
             return
         self._sort_walls()
 
@@ -204,8 +215,11 @@ class NeighbourSearch:
         """What a continuation needs to see the same neighbour order: the grid and the strides
         (the lists are rebuilt by the next `update`; the walls' order is the boundary's)."""
         g = self.grid
-        return {"k_fluid": int(self.k_fluid), "k_boundary": int(self.k_boundary),
-                "grid": None if g is None else {"origin": g.origin.copy(), "cell": g.cell.copy(), "dims": g.dims.copy()}}
+        return {
+            "k_fluid": int(self.k_fluid),
+            "k_boundary": int(self.k_boundary),
+            "grid": None if g is None else {"origin": g.origin.copy(), "cell": g.cell.copy(), "dims": g.dims.copy()},
+        }
 
     def load_state_dict(self, d: dict) -> None:
         """Put the grid and strides back, before any `update`. The boundary must already be in
@@ -255,17 +269,31 @@ class NeighbourSearch:
         g = self.grid
         n = len(xs)
         while True:
-            if self.lists is None or self.lists.fluid.shape != (n, self.k_fluid) \
-                    or self.lists.boundary.shape != (n, self.k_boundary):
+            if (
+                self.lists is None
+                or self.lists.fluid.shape != (n, self.k_fluid)
+                or self.lists.boundary.shape != (n, self.k_boundary)
+            ):
                 self.lists = NeighbourLists(n, self.k_fluid, self.k_boundary)
             lists = self.lists
             # fluid pairs are symmetric: gather j > i in parallel, then append each pair to the
             # lower particle's row serially (cheaper than a full gather: docs/performance.md)
-            gather_neighbours(xs, xs, fluid_start, g.origin, g.inv_cell, g.dims, self.h, True, True,
-                              lists.fluid, lists.fluid_count)
+            gather_neighbours(
+                xs, xs, fluid_start, g.origin, g.inv_cell, g.dims, self.h, True, True, lists.fluid, lists.fluid_count
+            )
             most_f = append_lower(lists.fluid, lists.fluid_count)
-            most_b = gather_walls(xs, self.boundary.x, self.wall_start, self.wall_cand, g.origin, g.inv_cell,
-                                  g.dims, self.h, lists.boundary, lists.boundary_count)
+            most_b = gather_walls(
+                xs,
+                self.boundary.x,
+                self.wall_start,
+                self.wall_cand,
+                g.origin,
+                g.inv_cell,
+                g.dims,
+                self.h,
+                lists.boundary,
+                lists.boundary_count,
+            )
             if most_f <= self.k_fluid and most_b <= self.k_boundary:
                 return
             # grow the stride (rounded up to a multiple of 16) and rebuild; rare

@@ -5,6 +5,7 @@ one step to the next (warm-start stiffness, pressure). Keeping them all here mea
 neighbour search can reorder particles for locality with one `permute`, and a checkpoint is
 simply `arrays()`. Methods keep their per-step scratch arrays to themselves.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -13,10 +14,18 @@ import numpy as np
 class ParticleState:
     """Named numpy arrays with a common first dimension (the fluid particles)."""
 
-    def __init__(self, x: np.ndarray, v: np.ndarray, m: np.ndarray, ids: np.ndarray | None = None, backend=None,
-                 capacity: int | None = None):
+    def __init__(
+        self,
+        x: np.ndarray,
+        v: np.ndarray,
+        m: np.ndarray,
+        ids: np.ndarray | None = None,
+        backend=None,
+        capacity: int | None = None,
+    ):
         if backend is None:
             from .backends import get_backend
+
             backend = get_backend()
         self.be = backend  # allocates the arrays and reorders them
         n = len(x)

@@ -4,6 +4,7 @@ errors_iterations.png: density error (mean, max) [%], divergence error [%] and s
 against simulated time, three stacked panels, runs overlaid. timings.png: median ms per step
 phase per run, grouped bars. Legend: run folder name + method (from run.json).
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -66,8 +67,11 @@ def plot_runs(out_dirs, output_dir: Path | None = None, *, dpi: int = 110) -> li
         axes[0].plot(t, _column(s, "density_error_mean_pct"), color=c, lw=1.3, label=f"{label}: mean")
         axes[0].plot(t, _column(s, "density_error_max_pct"), color=c, lw=0.9, ls="--", label=f"{label}: max")
         axes[1].plot(t, _column(s, "divergence_error_pct"), color=c, lw=1.3, label=label)
-        for col, ls, what in (("pd_passes", "-", "PD passes"), ("divergence_iterations", "--", "divergence it."),
-                              ("density_iterations", ":", "density it.")):
+        for col, ls, what in (
+            ("pd_passes", "-", "PD passes"),
+            ("divergence_iterations", "--", "divergence it."),
+            ("density_iterations", ":", "density it."),
+        ):
             y = _column(s, col)
             if np.any(np.nan_to_num(y) > 0):
                 axes[2].step(t, y, where="post", color=c, ls=ls, lw=1.1, label=f"{label}: {what}")
@@ -91,10 +95,8 @@ def plot_runs(out_dirs, output_dir: Path | None = None, *, dpi: int = 110) -> li
     width = 0.8 / len(runs)
     x = np.arange(len(phases))
     for k, (label, s) in enumerate(runs):
-        med = [float(np.nanmedian(_column(s, ph))) if np.any(np.isfinite(_column(s, ph))) else 0.0
-               for ph in phases]
-        bars = ax.bar(x + (k - (len(runs) - 1) / 2) * width, med, width, label=label,
-                      color=colours[k % len(colours)])
+        med = [float(np.nanmedian(_column(s, ph))) if np.any(np.isfinite(_column(s, ph))) else 0.0 for ph in phases]
+        bars = ax.bar(x + (k - (len(runs) - 1) / 2) * width, med, width, label=label, color=colours[k % len(colours)])
         ax.bar_label(bars, fmt="%.1f", fontsize=7, padding=1)
     ax.set_xticks(x, [PHASES[ph] for ph in phases], rotation=15)
     ax.set_ylabel("median time per step [ms]")

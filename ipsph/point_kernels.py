@@ -1,5 +1,6 @@
 """Point-cloud kernels of the sampler (numba): the greedy Poisson-disk filter and the nearest
 distance within a cutoff, both on a uniform cell table."""
+
 from __future__ import annotations
 
 import math
@@ -71,8 +72,7 @@ def _greedy_kernel(points, cell_of, nbr, r2, cap, keep, overflow):
             keep[i] = True
 
 
-def nearest_distance(query: np.ndarray, points: np.ndarray, cutoff: float, *, exclude_self: bool = False
-                     ) -> np.ndarray:
+def nearest_distance(query: np.ndarray, points: np.ndarray, cutoff: float, *, exclude_self: bool = False) -> np.ndarray:
     """Distance from each query point to its nearest point (inf when none is closer than cutoff).
     exclude_self: query is points, each point's own index is skipped (nearest-neighbour spacing)."""
     q = np.ascontiguousarray(np.asarray(query, dtype=np.float64).reshape(-1, 3))

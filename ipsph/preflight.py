@@ -5,6 +5,7 @@ body's extent, the render size against the available memory. Meshes come from th
 in-process memo (`sampling.mesh_report`), so each mesh is read once per run: these checks, the
 sampling and the boundary surface all share it.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -16,13 +17,14 @@ from .params import spacing
 
 BYTES_PER_PARTICLE = 1024  # the solver's budget per fluid particle (docs/performance.md)
 RENDER_BYTES_PER_PIXEL = 112  # render process peak: static layers, depth/owner/shade buffers, frame and
-                              # PNG rows, VTK's and llvmpipe's framebuffers (measured 100 B/px at 3840x2160)
+# PNG rows, VTK's and llvmpipe's framebuffers (measured 100 B/px at 3840x2160)
 
 
 def available_memory() -> int:
     """Bytes of memory available to this run now (psutil; 8 GiB if it cannot tell)."""
     try:
         import psutil
+
         return int(psutil.virtual_memory().available)
     except Exception:  # pragma: no cover - psutil is a dependency
         return 8 << 30
@@ -42,7 +44,8 @@ def check_render_size(scene: Scene) -> None:
         raise ConfigError(
             f"render.width x render.height = {scene.render.width} x {scene.render.height} would need about "
             f"{need / 2**30:.1f} GiB in the render process, over half the available {avail / 2**30:.1f} GiB; "
-            f"use a smaller image, or --no-render and `ipsph render OUT --size W H` on a larger machine")
+            f"use a smaller image, or --no-render and `ipsph render OUT --size W H` on a larger machine"
+        )
 
 
 def check_size(scene: Scene, max_particles: int | None) -> int:
@@ -51,6 +54,7 @@ def check_size(scene: Scene, max_particles: int | None) -> int:
     n = check_fluid_count(scene.fluids, scene.particle_radius, max_particles)
     if scene.emitters:
         from .emitters import check_capacity, check_placement
+
         check_placement(scene)
         n = check_capacity(scene, n, max_particles or default_max_particles())
     return n
@@ -67,7 +71,8 @@ def check_fluid_count(fluids, radius: float, max_particles: int | None) -> int:
             ext = _extent_hint(spec)
             raise ConfigError(
                 f"fluid '{spec.name}' would need about {total:,} particles ({total * BYTES_PER_PARTICLE / 2**30:.1f} GiB) "
-                f"at particle_radius {radius} m, over the limit of {limit:,} (--max-particles){ext}")
+                f"at particle_radius {radius} m, over the limit of {limit:,} (--max-particles){ext}"
+            )
     return total
 
 
@@ -86,7 +91,8 @@ def check_geometry(scene: Scene) -> None:
             raise ConfigError(
                 f"fluid[{i}] '{spec.name}': simulation.particle_radius {scene.particle_radius} m is too large for "
                 f"its extent of {ext[a]:.4g} m along {'xyz'[a]} ({int(max(n[a], 0))} particle(s) across, at least 2 "
-                f"needed); use particle_radius <= {need:.3g} m (a tenth of that or less for useful results)")
+                f"needed); use particle_radius <= {need:.3g} m (a tenth of that or less for useful results)"
+            )
 
 
 def _fluid_extent(spec) -> np.ndarray | None:
@@ -114,10 +120,13 @@ def check_backend(scene: Scene) -> None:
     """simulation.backend can run here (for cuda: numba-cuda, a driver, the device), and the
     precision is one it has; ConfigError naming what is missing, before anything is allocated."""
     if scene.precision != "float64" and scene.backend == "cpu":
-        raise ConfigError(f"simulation.precision = \"{scene.precision}\" needs simulation.backend = \"cuda\" "
-                          f"(the CPU backend runs in float64)")
+        raise ConfigError(
+            f'simulation.precision = "{scene.precision}" needs simulation.backend = "cuda" '
+            f"(the CPU backend runs in float64)"
+        )
     if scene.backend == "cuda":
         from .backends._cuda import unavailable
+
         why = unavailable(scene.device)
         if why is not None:
-            raise ConfigError(f"simulation.backend = \"cuda\": {why}")
+            raise ConfigError(f'simulation.backend = "cuda": {why}')

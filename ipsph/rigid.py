@@ -21,6 +21,7 @@ step (methods/base.py):
 Contacts (bodies with static walls and with each other) are one penalty spring-damper per pair
 of walls in touch, from their particles closer than CONTACT_DISTANCE_D * d (method.md section 9).
 """
+
 from __future__ import annotations
 
 import math
@@ -32,15 +33,15 @@ from .kernels import grad_w_factor
 from .model import BoundarySpec, Scene
 from .motion import Motion, quat_axis_angle, quat_matrix, quat_mul
 
-CONTACT_DISTANCE_D = 1.0     # contact when two walls' particles are closer than d = 2r
+CONTACT_DISTANCE_D = 1.0  # contact when two walls' particles are closer than d = 2r
 # Fluid starts at least this many spacings d from a rigid body's particles (other walls: 1 d). The
 # full-mass lattice against an Akinci wall reads up to 1.145 rho0 (method.md section 1): against a
 # static wall that is the corner pop; against a body it launched a floating crate out of the water at
 # t = 0. A gap of 1.5 d starts the fluid next to the body slightly under-dense instead.
 BODY_GAP_D = 1.5
-CONTACT_STEPS = 4.0          # contact stiffness: omega_c = 1 / (CONTACT_STEPS dt), stable explicit springs
-CONTACT_DAMPING = 1.0        # damping ratio of the contact spring (critical: no bounce)
-CONTACT_FRICTION = 0.5       # Coulomb friction coefficient capping the contact's viscous tangential damping
+CONTACT_STEPS = 4.0  # contact stiffness: omega_c = 1 / (CONTACT_STEPS dt), stable explicit springs
+CONTACT_DAMPING = 1.0  # damping ratio of the contact spring (critical: no bounce)
+CONTACT_FRICTION = 0.5  # Coulomb friction coefficient capping the contact's viscous tangential damping
 
 
 @njit(cache=True)
@@ -69,13 +70,14 @@ def mass_properties(spec: BoundarySpec, density: float) -> tuple[float, np.ndarr
     """(mass, centre of mass, inertia tensor about it) of the closed surface at `density`:
     the divergence theorem over the triangles' tetrahedra from the origin."""
     from .sampling import boundary_surface
+
     mesh = boundary_surface(spec).triangulate()
     pts = np.asarray(mesh.points, dtype=np.float64)
     tri = np.asarray(mesh.faces).reshape(-1, 4)[:, 1:]
     a, b, c = pts[tri[:, 0]], pts[tri[:, 1]], pts[tri[:, 2]]
     vol = np.einsum("ij,ij->i", a, np.cross(b, c)) / 6.0
     v_total = float(vol.sum())
-    if v_total < 0.0:   # inward normals: the same body
+    if v_total < 0.0:  # inward normals: the same body
         vol, v_total = -vol, -v_total
     com = (vol[:, None] * (a + b + c)).sum(axis=0) / (4.0 * v_total)
     s = a + b + c
@@ -99,13 +101,13 @@ class RigidBody:
         self.mass = dens * volume
         self.volume = volume
         self.c0 = com
-        self.inertia_body = dens * inertia           # body frame = world frame at t = 0
+        self.inertia_body = dens * inertia  # body frame = world frame at t = 0
         self.inv_inertia_body = np.linalg.inv(self.inertia_body)
         self.c = com.copy()
         self.q = np.array([1.0, 0.0, 0.0, 0.0])
         self.v = np.asarray(spec.velocity, dtype=np.float64).copy()
         self.w = np.radians(np.asarray(spec.angular_velocity, dtype=np.float64))
-        self.force = np.zeros(3)        # fluid force and torque of the last reaction
+        self.force = np.zeros(3)  # fluid force and torque of the last reaction
         self.torque = np.zeros(3)
         self.contact_force = np.zeros(3)
         self.contact_torque = np.zeros(3)
@@ -134,8 +136,10 @@ class RigidBody:
         return rel + self.c, self.v + np.cross(self.w, rel)
 
     def state(self) -> dict:
-        return {k: np.array(getattr(self, k), dtype=np.float64) for k in
-                ("c", "q", "v", "w", "force", "torque", "contact_force", "contact_torque")}
+        return {
+            k: np.array(getattr(self, k), dtype=np.float64)
+            for k in ("c", "q", "v", "w", "force", "torque", "contact_force", "contact_torque")
+        }
 
     def load(self, d: dict) -> None:
         for k, v in d.items():
@@ -156,7 +160,7 @@ class WallDriver:
         self.t = 0.0
         self.kinematic: list[tuple[int, str, Motion]] = []
         self.bodies: list[RigidBody] = []
-        self.force = {}    # group -> (F, tau) of the last reaction, every moving wall
+        self.force = {}  # group -> (F, tau) of the last reaction, every moving wall
         x0, groups = boundary.x0, boundary.groups
         for k, spec in enumerate(scene.boundaries):
             grp = k + 1
@@ -171,7 +175,7 @@ class WallDriver:
                 self.kinematic.append((grp, spec.name, Motion(spec.motion, pivot)))
             self.force[grp] = (np.zeros(3), np.zeros(3))
         self._fb = np.zeros((boundary.n, 3))
-        self.surface_cache: dict = {}   # name -> the wall's surface at its placement (io.bodies)
+        self.surface_cache: dict = {}  # name -> the wall's surface at its placement (io.bodies)
         self.place(0.0)
 
     # -- the two calls of a step ---------------------------------------------------------------
@@ -240,6 +244,7 @@ class WallDriver:
         pair normalised by the pair count is not conservative (the count changes along the
         approach) and bounced a dropped box higher than it fell."""
         from .boundary import radius_lists
+
         b = self.boundary
         dc = CONTACT_DISTANCE_D * self.d
         om = 1.0 / (CONTACT_STEPS * dt)
@@ -256,7 +261,7 @@ class WallDriver:
             if cnt.sum() == 0:
                 continue
             rows = np.repeat(np.arange(len(mine)), cnt)
-            cols = np.concatenate([nbr[i, :cnt[i]] for i in np.flatnonzero(cnt)])
+            cols = np.concatenate([nbr[i, : cnt[i]] for i in np.flatnonzero(cnt)])
             p, q = mine[rows], other[order[cols]]
             diff = b.x[p] - b.x[q]
             r = np.linalg.norm(diff, axis=1)
@@ -266,7 +271,7 @@ class WallDriver:
                 sel = b.groups[q] == grp_other
                 partner = by_group.get(int(grp_other))
                 if partner is not None and partner.group < body.group:
-                    continue   # that pair was done from the partner's side
+                    continue  # that pair was done from the partner's side
                 ws = w[sel]
                 n = (ws[:, None] * n_pair[sel]).sum(axis=0)
                 if not np.linalg.norm(n) > 0.0:
@@ -274,13 +279,16 @@ class WallDriver:
                 n /= np.linalg.norm(n)
                 at = (ws[:, None] * b.x[p[sel]]).sum(axis=0) / ws.sum()
                 v_mine = body.v + np.cross(body.w, at - body.c)
-                v_other = (ws[:, None] * b.v[q[sel]]).sum(axis=0) / ws.sum() if partner is None else \
-                    partner.v + np.cross(partner.w, at - partner.c)
+                v_other = (
+                    (ws[:, None] * b.v[q[sel]]).sum(axis=0) / ws.sum()
+                    if partner is None
+                    else partner.v + np.cross(partner.w, at - partner.c)
+                )
                 mu = body.mass if partner is None else body.mass * partner.mass / (body.mass + partner.mass)
                 v_rel = v_mine - v_other
                 mag = max(mu * (om * om * ws.max() - 2.0 * CONTACT_DAMPING * om * float(np.dot(v_rel, n))), 0.0)
-                f = mag * n   # contacts push, never pull
-                v_t = v_rel - float(np.dot(v_rel, n)) * n   # friction: viscous, capped by Coulomb's mu_f f_n
+                f = mag * n  # contacts push, never pull
+                v_t = v_rel - float(np.dot(v_rel, n)) * n  # friction: viscous, capped by Coulomb's mu_f f_n
                 speed_t = float(np.linalg.norm(v_t))
                 if speed_t > 0.0 and mag > 0.0:
                     f = f - min(CONTACT_FRICTION * mag, mu * 2.0 * CONTACT_DAMPING * om * speed_t) * v_t / speed_t
@@ -306,7 +314,9 @@ class WallDriver:
             r, tr = motion.pose(t)
             c = motion.pivot + tr
             h = 1e-6
-            v = ((motion.positions(motion.pivot[None], t + h) - motion.positions(motion.pivot[None], t - h)) / (2 * h))[0]
+            v = ((motion.positions(motion.pivot[None], t + h) - motion.positions(motion.pivot[None], t - h)) / (2 * h))[
+                0
+            ]
             f, tau = self.force[grp]
             out.append((t, name, *c, *_quat_of(r), *v, *f, *tau))
         return out
@@ -330,7 +340,7 @@ class WallDriver:
             self.force[g] = (ft[:3].copy(), ft[3:].copy())
         for i, (grp, name, m) in enumerate(self.kinematic):
             m.pivot = np.asarray(d[f"pivot.{name}"], dtype=np.float64).copy()
-        self.t_walls = float(d["t_walls"])   # the walls are where the saved step left them (the Boundary's state)
+        self.t_walls = float(d["t_walls"])  # the walls are where the saved step left them (the Boundary's state)
 
 
 def _quat_of(r: np.ndarray) -> np.ndarray:
@@ -346,6 +356,7 @@ def body_gap_mask(fluid_x: np.ndarray, scene: Scene, walls: list[np.ndarray], r:
     """True for the fluid particles at least BODY_GAP_D d from every rigid body's wall particles
     (`walls`: the sampled particles of each scene boundary, in order)."""
     from .point_kernels import nearest_distance
+
     body = [w for spec, w in zip(scene.boundaries, walls) if spec.dynamic]
     gap = BODY_GAP_D * 2.0 * r
     pts = np.ascontiguousarray(np.concatenate(body))
@@ -357,6 +368,10 @@ def boundary_groups(scene: Scene, counts: list[int]) -> np.ndarray | None:
     when no wall moves (every wall as before: one volume group, no driver)."""
     if not any(b.moving for b in scene.boundaries):
         return None
-    return np.concatenate([np.zeros(0, dtype=np.int32)] + [
-        np.full(n, (k + 1) if spec.moving else 0, dtype=np.int32)
-        for k, (spec, n) in enumerate(zip(scene.boundaries, counts))])
+    return np.concatenate(
+        [np.zeros(0, dtype=np.int32)]
+        + [
+            np.full(n, (k + 1) if spec.moving else 0, dtype=np.int32)
+            for k, (spec, n) in enumerate(zip(scene.boundaries, counts))
+        ]
+    )

@@ -1,5 +1,6 @@
 """The on-disk cache of sampled particles ($IPSPH_CACHE_DIR, else ~/.cache/ipsph): fluid lattices
 and wall samples keyed by everything that decides them, written atomically, read only if sane."""
+
 from __future__ import annotations
 
 import hashlib
@@ -26,10 +27,17 @@ def cache_key(kind: str, spec, radius: float, version: str, mesh_path: Path | No
             h.update(b"\0")
 
     t = spec.transform
-    put(version, kind, float(radius).hex(), spec.shape,
-        tuple(float(v).hex() for v in t.translate), tuple(float(v).hex() for v in t.scale),
-        tuple(float(v).hex() for v in t.rotate_axis), float(t.rotate_deg).hex(),
-        getattr(spec, "allow_open_mesh", None))
+    put(
+        version,
+        kind,
+        float(radius).hex(),
+        spec.shape,
+        tuple(float(v).hex() for v in t.translate),
+        tuple(float(v).hex() for v in t.scale),
+        tuple(float(v).hex() for v in t.rotate_axis),
+        float(t.rotate_deg).hex(),
+        getattr(spec, "allow_open_mesh", None),
+    )
     if spec.shape == "box":
         put(tuple(float(v).hex() for v in spec.box_min), tuple(float(v).hex() for v in spec.box_max))
     else:

@@ -17,6 +17,7 @@ Conventions (r particle radius, d = 2r):
   vtkPoissonDiskSampler, seeded with the edges, which that filter cannot take). The result has
   nearest-neighbour spacing >= r and leaves no candidate farther than r from a sample.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -37,13 +38,13 @@ if TYPE_CHECKING:
     import pyvista as pv
 
 SAMPLER_VERSION = "ipsph-sampling-3"
-BOUNDARY_SPACING_FACTOR = 1.5     # box-grid spacing <= 1.5 r (method.md section 1)
+BOUNDARY_SPACING_FACTOR = 1.5  # box-grid spacing <= 1.5 r (method.md section 1)
 # Box walls: the grid sits this fraction of d = 2r behind the wall surface (outside a container,
 # inside an obstacle). With Akinci's volumes a layer on the surface makes the first fluid layer,
 # d away, read 1.064 rho0; 0.1 d back it reads rho0 to 1e-4 (method.md section 1, "Walls").
 BOX_WALL_OFFSET_FACTOR = 0.1
-POISSON_RADIUS_FACTOR = 1.0       # general meshes: samples at least r apart, none missing beyond r
-CANDIDATE_SPACING_FACTOR = 0.2    # candidate density r/5 (ecosystem.md)
+POISSON_RADIUS_FACTOR = 1.0  # general meshes: samples at least r apart, none missing beyond r
+CANDIDATE_SPACING_FACTOR = 0.2  # candidate density r/5 (ecosystem.md)
 FEATURE_ANGLE_DEG = 30.0
 # Fluid particles closer than d = 2r to a wall particle are removed: the first lattice layer sits
 # d from the walls (method.md: particles at r from a wall make DFSPH/IPSPH blow up). The factor
@@ -73,8 +74,10 @@ def _scaled_box(spec) -> tuple[np.ndarray, np.ndarray]:
     b = np.asarray(spec.box_max, dtype=np.float64) * s
     lo, hi = np.minimum(a, b), np.maximum(a, b)
     if not np.all(hi > lo):
-        raise ConfigError(f"{spec.name}: box_min {tuple(spec.box_min)} and box_max {tuple(spec.box_max)} "
-                          f"(scale {tuple(spec.transform.scale)}) enclose no volume; box_max must exceed box_min")
+        raise ConfigError(
+            f"{spec.name}: box_min {tuple(spec.box_min)} and box_max {tuple(spec.box_max)} "
+            f"(scale {tuple(spec.transform.scale)}) enclose no volume; box_max must exceed box_min"
+        )
     return lo, hi
 
 
@@ -157,8 +160,7 @@ def _sample_fluid(spec: model.FluidSpec, r: float, frame=None) -> np.ndarray:
         if np.any(counts == 0):
             return np.empty((0, 3), dtype=np.float64)
         return meshes.transform_points(_grid(lo + d, counts, d), _rigid(spec.transform))
-    mesh, report = _prepared(_mesh_path(spec), spec.transform, need_closed=True,
-                             allow_open=spec.allow_open_mesh)
+    mesh, report = _prepared(_mesh_path(spec), spec.transform, need_closed=True, allow_open=spec.allow_open_mesh)
     if frame is None:
         origin, counts = _mesh_lattice(report.bounds, d)
         lattice = _grid(origin, counts, d)
@@ -199,8 +201,9 @@ def lattice_frame(scene: model.Scene):
         if _shape(spec) == "box":
             lo, _ = _scaled_box(spec)
         else:
-            scaled, _ = _prepared(_mesh_path(spec), model.Transform(scale=spec.transform.scale),
-                                  need_closed=False, allow_open=True)
+            scaled, _ = _prepared(
+                _mesh_path(spec), model.Transform(scale=spec.transform.scale), need_closed=False, allow_open=True
+            )
             box = meshes.aligned_box(scaled)
             if box is None:
                 continue
@@ -245,7 +248,7 @@ def rest_lattice(scene: model.Scene, boundary_x: np.ndarray) -> np.ndarray:
     gy, gz = np.meshgrid(np.arange(lo[1], hi[1] + 1), np.arange(lo[2], hi[2] + 1), indexing="ij")
     plane = np.stack([gy.ravel(), gz.ravel()], axis=1).astype(np.float64)
     kept = []
-    step = max(1, 2_000_000 // max(len(plane), 1))   # lattice slabs of ~2M points
+    step = max(1, 2_000_000 // max(len(plane), 1))  # lattice slabs of ~2M points
     for x0 in range(lo[0], hi[0] + 1, step):
         xs = np.arange(x0, min(x0 + step, hi[0] + 1), dtype=np.float64)
         ijk = np.column_stack([np.repeat(xs, len(plane)), np.tile(plane, (len(xs), 1))])
@@ -296,16 +299,23 @@ def _box_surface_grid(lo: np.ndarray, hi: np.ndarray, max_spacing: float, offset
         gx, gy, gz = np.meshgrid(xs, ys, zs, indexing="ij")
         return np.stack([gx.ravel(), gy.ravel(), gz.ravel()], axis=1)
 
-    parts = [block(ax[0][[0, -1]], ax[1], ax[2]),          # x faces, with all their edges
-             block(inner[0], ax[1][[0, -1]], ax[2]),       # y faces, x-interior
-             block(inner[0], inner[1], ax[2][[0, -1]])]    # z faces, x- and y-interior
+    parts = [
+        block(ax[0][[0, -1]], ax[1], ax[2]),  # x faces, with all their edges
+        block(inner[0], ax[1][[0, -1]], ax[2]),  # y faces, x-interior
+        block(inner[0], inner[1], ax[2][[0, -1]]),
+    ]  # z faces, x- and y-interior
     return np.ascontiguousarray(np.concatenate(parts))
 
 
 def _feature_candidates(mesh, r: float) -> tuple[np.ndarray, np.ndarray]:
     """(corners, dense edge samples) of the feature edges (30°, boundary and non-manifold edges)."""
-    fe = mesh.extract_feature_edges(feature_angle=FEATURE_ANGLE_DEG, boundary_edges=True,
-                                    non_manifold_edges=True, feature_edges=True, manifold_edges=False)
+    fe = mesh.extract_feature_edges(
+        feature_angle=FEATURE_ANGLE_DEG,
+        boundary_edges=True,
+        non_manifold_edges=True,
+        feature_edges=True,
+        manifold_edges=False,
+    )
     if fe.n_cells == 0:
         return np.empty((0, 3)), np.empty((0, 3))
     pts = np.asarray(fe.points, dtype=np.float64)
@@ -316,9 +326,9 @@ def _feature_candidates(mesh, r: float) -> tuple[np.ndarray, np.ndarray]:
     length = np.linalg.norm(b - a, axis=1)
     k = np.maximum(np.ceil(length / (CANDIDATE_SPACING_FACTOR * r)).astype(np.int64), 1)
     owner = np.repeat(np.arange(len(seg)), k)
-    step = np.arange(len(owner)) - np.repeat(np.cumsum(k) - k, k)     # 0..k-1 within a segment
+    step = np.arange(len(owner)) - np.repeat(np.cumsum(k) - k, k)  # 0..k-1 within a segment
     frac = (step / np.repeat(k, k))[:, None]
-    dense = a[owner] + frac * (b - a)[owner]                             # includes each start vertex
+    dense = a[owner] + frac * (b - a)[owner]  # includes each start vertex
     return np.ascontiguousarray(corners), np.ascontiguousarray(dense)
 
 
@@ -352,8 +362,9 @@ def _sample_boundary(spec: model.BoundarySpec, r: float) -> np.ndarray:
     if _shape(spec) == "box":
         lo, hi = _scaled_box(spec)
         return meshes.transform_points(_box_surface_grid(lo, hi, step, offset), _rigid(spec.transform))
-    scaled, _ = _prepared(_mesh_path(spec), model.Transform(scale=spec.transform.scale),
-                          need_closed=False, allow_open=True)
+    scaled, _ = _prepared(
+        _mesh_path(spec), model.Transform(scale=spec.transform.scale), need_closed=False, allow_open=True
+    )
     box = meshes.aligned_box(scaled)
     if box is not None:
         return meshes.transform_points(_box_surface_grid(box[0], box[1], step, offset), _rigid(spec.transform))
@@ -402,9 +413,14 @@ def solid_mask(points: np.ndarray, boundaries: Sequence[model.BoundarySpec], rad
     return keep & in_container if has_container else keep
 
 
-def remove_overlaps(fluid: np.ndarray, boundary_points: np.ndarray, min_dist: float, *,
-                    boundaries: Sequence[model.BoundarySpec] = (), radius: float | None = None
-                    ) -> tuple[np.ndarray, int]:
+def remove_overlaps(
+    fluid: np.ndarray,
+    boundary_points: np.ndarray,
+    min_dist: float,
+    *,
+    boundaries: Sequence[model.BoundarySpec] = (),
+    radius: float | None = None,
+) -> tuple[np.ndarray, int]:
     """(kept mask, removed count): drop fluid particles closer than min_dist to a wall particle
     (use default_overlap_distance(r) = d) and, given boundaries and radius, those solid_mask rejects."""
     f = np.ascontiguousarray(np.asarray(fluid, dtype=np.float64).reshape(-1, 3))
@@ -418,8 +434,9 @@ def remove_overlaps(fluid: np.ndarray, boundary_points: np.ndarray, min_dist: fl
 
 def cache_key(kind: str, spec, radius: float) -> str:
     """The disk-cache key of a fluid's or wall's samples (sample_cache.cache_key)."""
-    return sample_cache.cache_key(kind, spec, radius, SAMPLER_VERSION,
-                                  _mesh_path(spec) if spec.shape != "box" else None)
+    return sample_cache.cache_key(
+        kind, spec, radius, SAMPLER_VERSION, _mesh_path(spec) if spec.shape != "box" else None
+    )
 
 
 def _cached(kind: str, spec, r: float, use_cache: bool, sample, extra=()) -> np.ndarray:

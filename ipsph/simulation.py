@@ -11,6 +11,7 @@ viscosity also at most H^2 / (60 nu)); steps whose CFL value fell below dt_min a
 hidden. When the next step would cross a frame time, the remaining time is spread over the last
 two steps (no sliver steps).
 """
+
 from __future__ import annotations
 
 import math
@@ -33,13 +34,14 @@ from .particles import ParticleState
 @dataclass
 class StepStats(StepReport):
     """A method's StepReport plus what the time loop adds."""
+
     step: int = 0
     time: float = 0.0
     max_speed: float = 0.0
     kinetic_energy: float = 0.0
     dt_clamped: bool = False
-    emitted: int = 0                  # particles emitted at the end of the step (ipsph.emitters)
-    removed: int = 0                  # particles removed by sinks and the domain box
+    emitted: int = 0  # particles emitted at the end of the step (ipsph.emitters)
+    removed: int = 0  # particles removed by sinks and the domain box
 
 
 # Explicit Standard viscosity is stable while nu dt lambda_max <= 2, lambda_max the largest
@@ -70,19 +72,26 @@ def wants_settle(scene: Scene, fluid_x: np.ndarray, fluid_v: np.ndarray, boundar
         # the pre-pass steps the method from rest at t = 0: moving walls and bodies would move and
         # emitters would not emit during it, so such scenes start as sampled
         if scene.settle == "on":
-            raise ConfigError("simulation.settle: 'on' cannot be combined with moving walls, rigid "
-                              "bodies or emitters (use 'auto' or 'off')")
+            raise ConfigError(
+                "simulation.settle: 'on' cannot be combined with moving walls, rigid "
+                "bodies or emitters (use 'auto' or 'off')"
+            )
         return False
     if scene.settle != "auto":
         return scene.settle == "on"
-    if scene.method == "pf":   # PF keeps a noise floor and never comes to rest (method.md section 3)
+    if scene.method == "pf":  # PF keeps a noise floor and never comes to rest (method.md section 3)
         return False
     g = np.asarray(scene.gravity, dtype=np.float64)
-    if (len(fluid_x) == 0 or len(boundary_x) == 0 or np.any(fluid_v != 0.0) or not np.any(g)
-            or not any(b.role == Role.CONTAINER for b in scene.boundaries)):
+    if (
+        len(fluid_x) == 0
+        or len(boundary_x) == 0
+        or np.any(fluid_v != 0.0)
+        or not np.any(g)
+        or not any(b.role == Role.CONTAINER for b in scene.boundaries)
+    ):
         return False
     down = int(np.argmax(np.abs(g)))
-    if np.count_nonzero(g) != 1:   # gravity along an axis only: "its floor" is a wall plane
+    if np.count_nonzero(g) != 1:  # gravity along an axis only: "its floor" is a wall plane
         return False
     across = [k for k in range(3) if k != down]
     d = spacing(scene.particle_radius)
@@ -108,9 +117,10 @@ def sample_scene(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray, list
     wall particle are removed and counted (the lattice would otherwise start inside a wall).
     """
     from . import sampling
+
     r = scene.particle_radius
     xs, vs = [np.zeros((0, 3))], [np.zeros((0, 3))]
-    frame = sampling.lattice_frame(scene)   # mesh fluids share the walls' rest lattice
+    frame = sampling.lattice_frame(scene)  # mesh fluids share the walls' rest lattice
     for spec in scene.fluids:
         x = sampling.fluid_positions(spec, r, frame=frame)
         xs.append(x)
@@ -120,18 +130,23 @@ def sample_scene(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray, list
     boundary_x = np.concatenate([np.zeros((0, 3))] + walls)
     notes = [n for spec in (*scene.fluids, *scene.boundaries) for n in sampling.mesh_notes(spec)]
     if len(scene.boundaries) and len(fluid_x):
-        kept, removed = sampling.remove_overlaps(fluid_x, boundary_x, sampling.default_overlap_distance(r),
-                                                 boundaries=scene.boundaries, radius=r)
-        if any(spec.dynamic for spec in scene.boundaries):   # a wider gap around rigid bodies (rigid.BODY_GAP_D)
+        kept, removed = sampling.remove_overlaps(
+            fluid_x, boundary_x, sampling.default_overlap_distance(r), boundaries=scene.boundaries, radius=r
+        )
+        if any(spec.dynamic for spec in scene.boundaries):  # a wider gap around rigid bodies (rigid.BODY_GAP_D)
             from .rigid import body_gap_mask
+
             kept &= body_gap_mask(fluid_x, scene, walls, r)
             removed = int(len(fluid_x) - kept.sum())
         if removed:
-            notes.append(f"{removed} of {len(fluid_x)} fluid particles overlapped a wall or lay outside the "
-                         f"containers and were removed")
+            notes.append(
+                f"{removed} of {len(fluid_x)} fluid particles overlapped a wall or lay outside the "
+                f"containers and were removed"
+            )
             fluid_x, fluid_v = fluid_x[kept], fluid_v[kept]
     if scene.emitters:
         from .emitters import wall_notes
+
         notes += wall_notes(scene, boundary_x)
     return np.ascontiguousarray(fluid_x), np.ascontiguousarray(fluid_v), np.ascontiguousarray(boundary_x), notes
 
@@ -142,6 +157,7 @@ def _wall_groups(scene: Scene, n_walls: int) -> np.ndarray | None:
         return None
     from .rigid import boundary_groups
     from .sampling import boundary_positions
+
     counts = [len(boundary_positions(spec, scene.particle_radius)) for spec in scene.boundaries]
     if sum(counts) != n_walls:
         raise ValueError(f"{n_walls} wall particles given, the scene's walls sample {sum(counts)}")
@@ -156,9 +172,17 @@ def _host(array_of, doc: str) -> property:
 class Simulation:
     """One fluid simulation: particle state, static walls, a method and the clock."""
 
-    def __init__(self, scene: Scene, fluid_x: np.ndarray, fluid_v: np.ndarray, boundary_x: np.ndarray,
-                 fluid_ids: np.ndarray | None = None, backend: str | Backend | None = None,
-                 capacity: int | None = None, settle: bool = True):
+    def __init__(
+        self,
+        scene: Scene,
+        fluid_x: np.ndarray,
+        fluid_v: np.ndarray,
+        boundary_x: np.ndarray,
+        fluid_ids: np.ndarray | None = None,
+        backend: str | Backend | None = None,
+        capacity: int | None = None,
+        settle: bool = True,
+    ):
         self.scene = scene
         backend = scene.backend if backend is None else backend  # simulation.backend, .precision, .device
         self.be = get_backend(backend, scene.precision, scene.device) if isinstance(backend, str) else backend
@@ -167,22 +191,25 @@ class Simulation:
         self.support = support(r)
         # every particle carries the water of its lattice cell, rho0 d^3 (method.md section 1); one
         # fluid mass: the passes take it as a scalar
-        mass = scene.density0 * self.spacing ** 3
+        mass = scene.density0 * self.spacing**3
         self.flow = None  # emitters, sinks, domain box (ipsph.emitters); None: a fixed particle count
         if scene.emitters or scene.sinks or scene.domain.min is not None:
             from .emitters import Flow, planned_emission
+
             first_id = int(np.max(fluid_ids)) + 1 if fluid_ids is not None and len(fluid_ids) else len(fluid_x)
             self.flow = Flow(scene, first_id)
             if capacity is None:
                 capacity = len(fluid_x) + planned_emission(scene)
         self.state = ParticleState(fluid_x, fluid_v, np.full(len(fluid_x), mass), fluid_ids, self.be, capacity)
         from .sampling import rest_lattice
+
         lattice = rest_lattice(scene, boundary_x) if scene.fit_wall_volumes else None
         groups = _wall_groups(scene, len(boundary_x))
         self.boundary = Boundary(boundary_x, self.support, scene.density0, lattice, self.spacing, groups)
-        self.walls = None   # moving walls and rigid bodies (ipsph.rigid)
+        self.walls = None  # moving walls and rigid bodies (ipsph.rigid)
         if groups is not None:
             from .rigid import WallDriver
+
             self.walls = WallDriver(scene, self.boundary, self.support, mass)
         self.search = self.be.neighbour_search(self.support, self.boundary)
         self.method = METHODS[scene.method](scene, self.state, self.boundary, self.search, self.be, mass)
@@ -196,7 +223,7 @@ class Simulation:
         self.domain = self._domain(boundary_x)
         self.method.prepare()
         self.settle_report: dict = {}
-        if settle and wants_settle(scene, fluid_x, fluid_v, boundary_x):   # not when restoring a checkpoint
+        if settle and wants_settle(scene, fluid_x, fluid_v, boundary_x):  # not when restoring a checkpoint
             self.settle_report = self.settle()
         vmax, _ = self.be.speed_energy(self.state.v, self.state.m)
         self.dt_next, self._clamped = self._cfl(self._wall_speed(vmax))
@@ -213,7 +240,7 @@ class Simulation:
         be, st, r = self.be, self.state, self.scene.particle_radius
         t0 = time.perf_counter()
         start = be.to_host(st.x)[np.argsort(be.to_host(st.id))]
-        dt = min(self.dt_max, max(self._viscous_dt(), self.dt_min))   # the CFL rule's bounds at rest
+        dt = min(self.dt_max, max(self._viscous_dt(), self.dt_min))  # the CFL rule's bounds at rest
         steps, still, vmax, top = 0, 0, math.inf, 0.0
         while steps < max_steps and still < SETTLE_HOLD:
             self.method.step(dt)
@@ -222,21 +249,27 @@ class Simulation:
                 self._fail(self._first_unhealthy(), "while settling before t = 0")
             vmax, _ = be.speed_energy(st.v, st.m)
             still = still + 1 if vmax <= SETTLE_SPEED else 0
-            top = max(top, vmax) if still else 0.0   # the fastest particle of the quiet stretch
+            top = max(top, vmax) if still else 0.0  # the fastest particle of the quiet stretch
             be.scale(st.v, SETTLE_DAMPING)
         be.scale(st.v, 0.0)
         self.method.prepare()
         moved = np.linalg.norm(be.to_host(st.x)[np.argsort(be.to_host(st.id))] - start, axis=1) / r
-        return {"steps": steps, "dt": dt, "max_speed": float(top if still else vmax),
-                "converged": bool(still >= SETTLE_HOLD),
-                "moved_mean_r": float(moved.mean()), "moved_max_r": float(moved.max()),
-                "seconds": time.perf_counter() - t0}
+        return {
+            "steps": steps,
+            "dt": dt,
+            "max_speed": float(top if still else vmax),
+            "converged": bool(still >= SETTLE_HOLD),
+            "moved_mean_r": float(moved.mean()),
+            "moved_max_r": float(moved.max()),
+            "seconds": time.perf_counter() - t0,
+        }
 
     # -- construction -------------------------------------------------------------------------
     @classmethod
     def from_scene(cls, scene, overrides=()) -> "Simulation":
         """Build from a Scene, a scene file path or a scene dict; samples meshes into particles."""
         from .scene import load_scene, scene_from_dict
+
         if isinstance(scene, (str, Path)):
             scene = load_scene(Path(scene), list(overrides))
         elif isinstance(scene, dict):
@@ -293,8 +326,16 @@ class Simulation:
         self.dt_next, self._clamped = self._cfl(self._wall_speed(vmax))
         self.be.synchronize()
         rep.timings["step"] = time.perf_counter() - t0
-        return StepStats(**vars(rep), step=self.steps, time=self.time, max_speed=vmax, kinetic_energy=ke,
-                         dt_clamped=clamped, emitted=emitted, removed=removed)
+        return StepStats(
+            **vars(rep),
+            step=self.steps,
+            time=self.time,
+            max_speed=vmax,
+            kinetic_energy=ke,
+            dt_clamped=clamped,
+            emitted=emitted,
+            removed=removed,
+        )
 
     def _wall_speed(self, vmax: float) -> float:
         """The CFL speed: the fluid's, or a moving wall's if faster (a body never moves more than
@@ -302,7 +343,7 @@ class Simulation:
         return vmax if self.walls is None else max(vmax, self.walls.max_speed())
 
     def _first_unhealthy(self) -> int:
-        if self.walls is not None and len(self.boundary.x):   # the containers may move
+        if self.walls is not None and len(self.boundary.x):  # the containers may move
             self.domain = self._domain(self.boundary.x)
         return self.be.first_unhealthy(self.state.x, self.state.v, self.domain[0], self.domain[1])
 
@@ -321,7 +362,9 @@ class Simulation:
             what = f"left the domain at x = ({x[0]:.4g}, {x[1]:.4g}, {x[2]:.4g}) m"
         raise NumericalFailure(
             f"{where}: particle id {pid} {what} (|v| = {np.linalg.norm(v):.4g} m/s)"
-            + (f" ({inner})" if inner else "") + f"; {hint}")
+            + (f" ({inner})" if inner else "")
+            + f"; {hint}"
+        )
 
     def _landing_dt(self, t_target: float) -> tuple[float, bool]:
         """The next dt towards t_target: the CFL dt, or half / all of what remains (no slivers)."""
@@ -347,8 +390,14 @@ class Simulation:
         while self._before(t_target):
             self._step_towards(t_target, on_step)
 
-    def run(self, end_time: float | None = None, fps: float | None = None, on_frame=None, on_step=None,
-            every_step: bool | None = None) -> None:
+    def run(
+        self,
+        end_time: float | None = None,
+        fps: float | None = None,
+        on_frame=None,
+        on_step=None,
+        every_step: bool | None = None,
+    ) -> None:
         """Run to `end_time`, calling on_frame(sim, k) at t = k / fps (k = 0 first) or after every step."""
         out = self.scene.output
         end_time = self.scene.end_time if end_time is None else end_time
@@ -380,12 +429,21 @@ class Simulation:
         """Everything a bit-identical continuation needs, between two steps: the particles, the
         walls and the neighbour grid in their current order, and the clock (copies: later steps
         do not change it)."""
-        return {"particles": self.state.state_dict(), "boundary": self.boundary.state_dict(),
-                "search": self.search.state_dict(), "method": self.method.state_dict(),
-                **({"walls": self.walls.state_dict()} if self.walls is not None else {}),
-                "clock": {"time": self.time, "steps": self.steps, "clamped_steps": int(self.clamped_steps),
-                          "dt_next": self.dt_next, "next_clamped": bool(self._clamped)},
-                **({"flow": self.flow.state_dict()} if self.flow else {})}
+        return {
+            "particles": self.state.state_dict(),
+            "boundary": self.boundary.state_dict(),
+            "search": self.search.state_dict(),
+            "method": self.method.state_dict(),
+            **({"walls": self.walls.state_dict()} if self.walls is not None else {}),
+            "clock": {
+                "time": self.time,
+                "steps": self.steps,
+                "clamped_steps": int(self.clamped_steps),
+                "dt_next": self.dt_next,
+                "next_clamped": bool(self._clamped),
+            },
+            **({"flow": self.flow.state_dict()} if self.flow else {}),
+        }
 
     def load_state_dict(self, d: dict) -> None:
         """Continue from `state_dict()` of a Simulation of the same scene (ValueError if it does not

@@ -12,6 +12,7 @@ multiples of the particle radius r, as in our `[surface]` table (`ipsph.model.Su
 A frame whose reconstruction fails (no particles, non-finite positions, splashsurf's own error,
 no triangles) raises `SurfaceFailed` with a one-line reason; callers report it and carry on.
 """
+
 from __future__ import annotations
 
 import os
@@ -24,8 +25,7 @@ import numpy as np
 
 from .model import SurfaceConfig
 
-__all__ = ["SurfaceFailed", "Surface", "reconstruct", "write_surface", "read_vtp", "surface_output",
-           "FORMATS"]
+__all__ = ["SurfaceFailed", "Surface", "reconstruct", "write_surface", "read_vtp", "surface_output", "FORMATS"]
 
 FORMATS = ("vtp", "obj", "ply")
 
@@ -36,11 +36,11 @@ class SurfaceFailed(Exception):
 
 @dataclass
 class Surface:
-    vertices: np.ndarray          # (V, 3) float32, m
-    triangles: np.ndarray         # (T, 3) int64, counter-clockwise seen from outside
-    normals: np.ndarray           # (V, 3) float32, unit, outward
-    velocity: np.ndarray | None   # (V, 3) float32, m/s, SPH-interpolated from the particles
-    seconds: float = 0.0          # reconstruction wall time
+    vertices: np.ndarray  # (V, 3) float32, m
+    triangles: np.ndarray  # (T, 3) int64, counter-clockwise seen from outside
+    normals: np.ndarray  # (V, 3) float32, unit, outward
+    velocity: np.ndarray | None  # (V, 3) float32, m/s, SPH-interpolated from the particles
+    seconds: float = 0.0  # reconstruction wall time
 
     @property
     def speed(self) -> np.ndarray | None:
@@ -53,8 +53,14 @@ def set_threads(n: int | None) -> None:
         os.environ["RAYON_NUM_THREADS"] = str(int(n))
 
 
-def reconstruct(points: np.ndarray, velocities: np.ndarray | None, particle_radius: float, rest_density: float,
-                config: SurfaceConfig = SurfaceConfig(), clip_bounds=None) -> Surface:
+def reconstruct(
+    points: np.ndarray,
+    velocities: np.ndarray | None,
+    particle_radius: float,
+    rest_density: float,
+    config: SurfaceConfig = SurfaceConfig(),
+    clip_bounds=None,
+) -> Surface:
     """The surface of one frame of fluid particles (positions in m); raises SurfaceFailed.
 
     clip_bounds [xmin, xmax, ymin, ymax, zmin, zmax] (m): the containers' box. Triangles outside it are
@@ -80,12 +86,22 @@ def reconstruct(points: np.ndarray, velocities: np.ndarray | None, particle_radi
     t0 = _time.perf_counter()
     try:
         mesh, _ = pysplashsurf.reconstruction_pipeline(
-            x, attributes_to_interpolate=attrs, particle_radius=float(particle_radius),
-            rest_density=float(rest_density), smoothing_length=float(c.smoothing_length),
-            cube_size=float(c.cube_size), iso_surface_threshold=float(c.iso_threshold),
-            mesh_smoothing_iters=int(c.mesh_smoothing_iterations) or None, mesh_smoothing_weights=True,
-            normals_smoothing_iters=int(c.normal_smoothing_iterations) or None, compute_normals=True,
-            decimate_barnacles=bool(c.decimate), mesh_cleanup=bool(c.decimate), multi_threading=True, **box)
+            x,
+            attributes_to_interpolate=attrs,
+            particle_radius=float(particle_radius),
+            rest_density=float(rest_density),
+            smoothing_length=float(c.smoothing_length),
+            cube_size=float(c.cube_size),
+            iso_surface_threshold=float(c.iso_threshold),
+            mesh_smoothing_iters=int(c.mesh_smoothing_iterations) or None,
+            mesh_smoothing_weights=True,
+            normals_smoothing_iters=int(c.normal_smoothing_iterations) or None,
+            compute_normals=True,
+            decimate_barnacles=bool(c.decimate),
+            mesh_cleanup=bool(c.decimate),
+            multi_threading=True,
+            **box,
+        )
     except BaseException as exc:  # splashsurf raises its errors as plain exceptions (a Rust panic: PanicException)
         if isinstance(exc, (KeyboardInterrupt, SystemExit)):
             raise
@@ -93,12 +109,19 @@ def reconstruct(points: np.ndarray, velocities: np.ndarray | None, particle_radi
     seconds = _time.perf_counter() - t0
     tris = np.asarray(mesh.mesh.triangles).astype(np.int64, copy=False).reshape(-1, 3)
     if len(tris) == 0:
-        raise SurfaceFailed(f"no surface: {len(x)} particles too sparse for iso_threshold {c.iso_threshold} "
-                            f"(a spray or a few stray particles)")
+        raise SurfaceFailed(
+            f"no surface: {len(x)} particles too sparse for iso_threshold {c.iso_threshold} "
+            f"(a spray or a few stray particles)"
+        )
     pa = mesh.point_attributes
     vel = pa.get("velocity")
-    return Surface(np.asarray(mesh.mesh.vertices, dtype=np.float32), tris, np.asarray(pa["normals"], np.float32),
-                   None if vel is None else np.asarray(vel, np.float32), seconds)
+    return Surface(
+        np.asarray(mesh.mesh.vertices, dtype=np.float32),
+        tris,
+        np.asarray(pa["normals"], np.float32),
+        None if vel is None else np.asarray(vel, np.float32),
+        seconds,
+    )
 
 
 # -- files -----------------------------------------------------------------------------------------
@@ -114,8 +137,10 @@ def to_polydata(s: Surface, time: float | None = None):
     poly.SetPoints(pts)
     cells = vtkCellArray()
     offsets = np.arange(0, 3 * len(s.triangles) + 1, 3, dtype=np.int64)
-    cells.SetData(numpy_to_vtkIdTypeArray(offsets, deep=True),
-                  numpy_to_vtkIdTypeArray(np.ascontiguousarray(s.triangles.ravel(), np.int64), deep=True))
+    cells.SetData(
+        numpy_to_vtkIdTypeArray(offsets, deep=True),
+        numpy_to_vtkIdTypeArray(np.ascontiguousarray(s.triangles.ravel(), np.int64), deep=True),
+    )
     poly.SetPolys(cells)
     pd = poly.GetPointData()
     normals = numpy_to_vtk(np.ascontiguousarray(s.normals, np.float32), deep=True)
@@ -144,12 +169,17 @@ def from_polydata(poly) -> Surface:
     pd = poly.GetPointData()
     n = pd.GetArray("Normals")
     vel = pd.GetArray("velocity")
-    return Surface(v, conn, vtk_to_numpy(n).astype(np.float32) if n is not None else np.zeros_like(v),
-                   vtk_to_numpy(vel).astype(np.float32) if vel is not None else None)
+    return Surface(
+        v,
+        conn,
+        vtk_to_numpy(n).astype(np.float32) if n is not None else np.zeros_like(v),
+        vtk_to_numpy(vel).astype(np.float32) if vel is not None else None,
+    )
 
 
 def read_vtp(path) -> Surface:
     from .render import read_surface
+
     poly = read_surface(path)
     if poly is None:
         raise SurfaceFailed(f"{path} does not exist")
@@ -170,8 +200,10 @@ def write_surface(path, s: Surface, fmt: str = "vtp", time: float | None = None)
         f = s.triangles + 1
         faces = np.stack([f, f], axis=2).reshape(-1, 6)
         with atomic_path(path, "surface") as tmp, open(tmp, "w") as out:
-            out.write(f"# ipsph surface{'' if time is None else f' t = {time!r} s'}: {len(s.vertices)} vertices, "
-                      f"{len(s.triangles)} triangles, outward normals\n")
+            out.write(
+                f"# ipsph surface{'' if time is None else f' t = {time!r} s'}: {len(s.vertices)} vertices, "
+                f"{len(s.triangles)} triangles, outward normals\n"
+            )
             np.savetxt(out, s.vertices, fmt="v %.7g %.7g %.7g")
             np.savetxt(out, s.normals, fmt="vn %.6g %.6g %.6g")
             np.savetxt(out, faces, fmt="f %d//%d %d//%d %d//%d")
@@ -198,8 +230,12 @@ def container_bounds(boundaries) -> list[float] | None:
     """[xmin, xmax, ymin, ymax, zmin, zmax] around the container walls (m), or None without one."""
     from .model import Role
     from .sampling import boundary_surface
-    boxes = [np.asarray(boundary_surface(b).bounds, dtype=float).reshape(3, 2)
-             for b in boundaries if b.role == Role.CONTAINER]
+
+    boxes = [
+        np.asarray(boundary_surface(b).bounds, dtype=float).reshape(3, 2)
+        for b in boundaries
+        if b.role == Role.CONTAINER
+    ]
     if not boxes:
         return None
     lo, hi = np.min([b[:, 0] for b in boxes], axis=0), np.max([b[:, 1] for b in boxes], axis=0)
@@ -208,8 +244,11 @@ def container_bounds(boundaries) -> list[float] | None:
 
 def container_bounds_of(scene_dict: dict) -> list[float] | None:
     """container_bounds of a stored scene's box containers (run.json without surface.clip_bounds)."""
-    boxes = [b["box"] for b in scene_dict.get("boundary", []) if b.get("role", "container") == "container"
-             and isinstance(b.get("box"), dict)]
+    boxes = [
+        b["box"]
+        for b in scene_dict.get("boundary", [])
+        if b.get("role", "container") == "container" and isinstance(b.get("box"), dict)
+    ]
     if not boxes:
         return None
     lo = np.min([b["min"] for b in boxes], axis=0)
@@ -238,8 +277,9 @@ def surface_output(out_dir, *, fmt: str = "vtp", overrides=(), threads: int | No
     if fmt not in FORMATS:
         raise OutputError(f"--format {fmt!r}: choose one of {', '.join(FORMATS)}")
     if not (out / out_io.RUN_PVD).is_file():
-        raise OutputError(f"{out} (resolved {out.resolve()}) holds no {out_io.RUN_PVD}: give the output folder "
-                          f"of `ipsph run`")
+        raise OutputError(
+            f"{out} (resolved {out.resolve()}) holds no {out_io.RUN_PVD}: give the output folder of `ipsph run`"
+        )
     run = read_run_json(out / out_io.RUN_JSON) if (out / out_io.RUN_JSON).is_file() else {}
     scene = run.get("scene") or {}
     config = surface_config(scene, overrides, where="ipsph surface")
@@ -282,7 +322,9 @@ def surface_output(out_dir, *, fmt: str = "vtp", overrides=(), threads: int | No
     if fmt == "vtp":
         series.write()
         if running and written:
-            log(f"ipsph: note: {out} is still running; its run.pvd is rewritten at every frame without these "
+            log(
+                f"ipsph: note: {out} is still running; its run.pvd is rewritten at every frame without these "
                 f"surfaces: run `ipsph surface {out}` again when it has finished to list them (it skips the "
-                f"surfaces already written)")
+                f"surfaces already written)"
+            )
     return {"written": written, "skipped": skipped, "failed": failed, "config": config}

@@ -9,6 +9,7 @@ queue (QUEUE_BYTES, as for renders), that frame's surface is skipped and listed 
 crash of the child costs the surfaces, never the run. `collect()` returns the surfaces written
 since the last call, so the runner lists them in run.pvd (and renders them in surface mode).
 """
+
 from __future__ import annotations
 
 import multiprocessing as mp
@@ -34,6 +35,7 @@ def _worker(jobs, results):
         out, radius, rho0, config, clip, threads = setup
         from . import surface
         from .io import surface_file
+
         surface.set_threads(threads)
         while True:
             job = jobs.get()
@@ -52,6 +54,7 @@ def _worker(jobs, results):
                 continue
             results.put(("ok", index, time, name, s.seconds, len(s.triangles)))
         import resource
+
         use = resource.getrusage(resource.RUSAGE_SELF)
         results.put(("done", -1, 0.0, use.ru_utime + use.ru_stime))
     except Exception as exc:  # reported by the parent as one warning line
@@ -69,16 +72,17 @@ class BackgroundSurfacer:
         self._proc.start()
         self.submitted = 0
         self.finished = 0
-        self.written: dict[int, str] = {}    # frame index -> surface file (relative to OUT)
-        self.missing: dict[int, str] = {}    # frame index -> why it has no surface
-        self.seconds = 0.0                   # reconstruction time in the child, summed
-        self.cpu_seconds = None              # the child's CPU time, reported when it ends
+        self.written: dict[int, str] = {}  # frame index -> surface file (relative to OUT)
+        self.missing: dict[int, str] = {}  # frame index -> why it has no surface
+        self.seconds = 0.0  # reconstruction time in the child, summed
+        self.cpu_seconds = None  # the child's CPU time, reported when it ends
         self.error: str | None = None
         self._pending: dict[int, float] = {}  # submitted, not reported yet: index -> time
         self._done: list[tuple[int, float, str]] = []
 
-    def configure(self, out: Path, radius: float, rho0: float, config, clip_bounds=None,
-                  threads: int | None = None) -> None:
+    def configure(
+        self, out: Path, radius: float, rho0: float, config, clip_bounds=None, threads: int | None = None
+    ) -> None:
         """Where to write, the fluid, the [surface] settings, the containers' box (ipsph.surface.reconstruct)."""
         self._jobs.put((str(out), float(radius), float(rho0), config, clip_bounds, threads))
 
@@ -120,8 +124,12 @@ class BackgroundSurfacer:
         if self.error is not None:
             self.missing[index] = f"the surface process stopped ({self.error})"
             return
-        job = (int(index), float(time), np.asarray(points, dtype=np.float32),
-               None if velocities is None else np.asarray(velocities, dtype=np.float32))
+        job = (
+            int(index),
+            float(time),
+            np.asarray(points, dtype=np.float32),
+            None if velocities is None else np.asarray(velocities, dtype=np.float32),
+        )
         frame_bytes = max(job[2].nbytes + (0 if job[3] is None else job[3].nbytes), 1)
         capacity = min(max(QUEUE_BYTES // frame_bytes, QUEUE_FRAMES[0]), QUEUE_FRAMES[1])
         if len(self._pending) >= capacity:
@@ -177,17 +185,28 @@ class BackgroundSurfacer:
         """The end of a run: wait for the frames in flight (Ctrl-C skips them), then one line listing the
         frames without a surface (`collect()` still returns the last surfaces written)."""
         try:
-            self.close(log, notice=lambda n: log(f"ipsph: reconstructing the surfaces of the last {n} frames "
-                                                 f"(Ctrl-C skips them; `ipsph surface {out}` makes them later)"))
+            self.close(
+                log,
+                notice=lambda n: log(
+                    f"ipsph: reconstructing the surfaces of the last {n} frames "
+                    f"(Ctrl-C skips them; `ipsph surface {out}` makes them later)"
+                ),
+            )
         except KeyboardInterrupt:
             self.terminate("interrupted after the run; `ipsph surface` makes it")
         if self.missing:
             listed = ", ".join(str(k) for k in sorted(self.missing)[:20]) + (" ..." if len(self.missing) > 20 else "")
-            log(f"ipsph: warning: {len(self.missing)} of {frames} frames have no surface (frames {listed}; reasons "
-                f"in run.json surface.missing); `ipsph surface {out}` makes those it can")
+            log(
+                f"ipsph: warning: {len(self.missing)} of {frames} frames have no surface (frames {listed}; reasons "
+                f"in run.json surface.missing); `ipsph surface {out}` makes those it can"
+            )
 
     def summary(self) -> dict:
         """For run.json: counts, the child's reconstruction seconds, and the frames without a surface."""
-        return {"enabled": True, "written": len(self.written), "reconstruction_seconds": self.seconds,
-                "process_cpu_seconds": self.cpu_seconds,
-                "missing": {str(k): v for k, v in sorted(self.missing.items())}}
+        return {
+            "enabled": True,
+            "written": len(self.written),
+            "reconstruction_seconds": self.seconds,
+            "process_cpu_seconds": self.cpu_seconds,
+            "missing": {str(k): v for k, v in sorted(self.missing.items())},
+        }

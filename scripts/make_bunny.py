@@ -8,6 +8,7 @@ y = 0, is centred on x = z = 0 and is 1 m long along x (scale it in a scene with
 
     python scripts/make_bunny.py            # writes meshes/bunny.obj (deterministic)
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -17,8 +18,8 @@ import pyvista as pv
 
 # (centre, semi-axes) of each part, in a frame where the bunny faces +x
 PARTS = [
-    ((0.00, 0.42, 0.0), (0.46, 0.36, 0.33)),   # body
-    ((0.38, 0.78, 0.0), (0.23, 0.21, 0.19)),   # head
+    ((0.00, 0.42, 0.0), (0.46, 0.36, 0.33)),  # body
+    ((0.38, 0.78, 0.0), (0.23, 0.21, 0.19)),  # head
     ((0.30, 1.10, 0.09), (0.06, 0.25, 0.10)),  # ear (left)
     ((0.32, 1.10, -0.09), (0.06, 0.25, 0.10)),  # ear (right)
     ((-0.47, 0.50, 0.0), (0.10, 0.10, 0.10)),  # tail
@@ -27,8 +28,8 @@ PARTS = [
     ((-0.18, 0.10, 0.20), (0.24, 0.10, 0.09)),  # hind feet
     ((-0.18, 0.10, -0.20), (0.24, 0.10, 0.09)),
 ]
-K = 0.08   # smooth-union blend radius (m, before the final scaling)
-N = 96     # grid nodes per axis
+K = 0.08  # smooth-union blend radius (m, before the final scaling)
+N = 96  # grid nodes per axis
 
 
 def field(x, y, z):
@@ -62,6 +63,7 @@ def make() -> pv.PolyData:
 
 def main() -> None:
     from ipsph.meshes import check_closed, signed_volume
+
     surf = make()
     check_closed(surf)
     out = Path(__file__).resolve().parents[1] / "meshes" / "bunny.obj"
@@ -73,8 +75,10 @@ def main() -> None:
         for a, b, c in faces:
             f.write(f"f {a + 1} {b + 1} {c + 1}\n")
     b = np.asarray(surf.bounds)
-    print(f"{out}: {len(pts)} vertices, {len(faces)} triangles, volume {signed_volume(surf):.4f} m^3, "
-          f"bounds {np.round(b, 3).tolist()}")
+    print(
+        f"{out}: {len(pts)} vertices, {len(faces)} triangles, volume {signed_volume(surf):.4f} m^3, "
+        f"bounds {np.round(b, 3).tolist()}"
+    )
 
 
 if __name__ == "__main__":

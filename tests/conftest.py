@@ -1,4 +1,5 @@
 """Shared test fixtures."""
+
 import pytest
 
 
@@ -6,6 +7,7 @@ import pytest
 def _restore_numba_threads():
     """Tests that run the CLI with --threads must not change the thread count of later tests."""
     import numba
+
     n = numba.get_num_threads()
     yield
     numba.set_num_threads(n)

@@ -6,6 +6,7 @@ CPU tests' process.
 
 The scenes are tiny (the simulator interprets every GPU thread in Python).
 """
+
 from __future__ import annotations
 
 import json
@@ -25,13 +26,21 @@ from ipsph.simulation import Simulation, sample_scene  # noqa: E402
 
 def tank(method: str, r: float = 0.025):
     """A 5^3 = 125 particle column at rest in a closed box (test_physics's tank, coarser)."""
-    return scene_from_dict({
-        "simulation": {"method": method, "particle_radius": r, "end_time": 1.0, "fit_wall_volumes": True,
-                       "settle": "off"},  # the backends compared step by step from the sampled start
-        "time_step": {"dt_max": 0.005},
-        "fluid": [{"box": {"min": [0.0, 0.0, 0.0], "max": [0.3, 0.3, 0.3]}}],
-        "boundary": [{"role": "container", "box": {"min": [0.0, 0.0, 0.0], "max": [0.3, 0.6, 0.3]}}],
-    }, name=f"tank-{method}")
+    return scene_from_dict(
+        {
+            "simulation": {
+                "method": method,
+                "particle_radius": r,
+                "end_time": 1.0,
+                "fit_wall_volumes": True,
+                "settle": "off",
+            },  # the backends compared step by step from the sampled start
+            "time_step": {"dt_max": 0.005},
+            "fluid": [{"box": {"min": [0.0, 0.0, 0.0], "max": [0.3, 0.3, 0.3]}}],
+            "boundary": [{"role": "container", "box": {"min": [0.0, 0.0, 0.0], "max": [0.3, 0.6, 0.3]}}],
+        },
+        name=f"tank-{method}",
+    )
 
 
 def rel(a, b) -> float:
@@ -55,8 +64,10 @@ def iterations(rep) -> list[int]:
 def twins(scene, precision="float64"):
     """The same sampled scene on the CPU backend (float64) and the CUDA backend."""
     fx, fv, bx, _ = sample_scene(scene)
-    return (Simulation(scene, fx, fv, bx, backend="cpu"),
-            Simulation(scene, fx, fv, bx, backend=get_backend("cuda", precision)))
+    return (
+        Simulation(scene, fx, fv, bx, backend="cpu"),
+        Simulation(scene, fx, fv, bx, backend=get_backend("cuda", precision)),
+    )
 
 
 def case_methods(steps: int = 10) -> dict:
@@ -69,10 +80,18 @@ def case_methods(steps: int = 10) -> dict:
         for _ in range(steps):
             dt = cpu.dt_next
             rc, rg = cpu.step(dt), gpu.step(dt)
-            rows.append({k: rel(by_id(cpu, getattr(cpu, f)), by_id(gpu, getattr(gpu, f)))
-                         for k, f in (("x", "positions"), ("v", "velocities"), ("rho", "densities"))} | {
-                         "same_order": bool(np.array_equal(cpu.ids, gpu.ids)),
-                         "it_cpu": iterations(rc), "it_cuda": iterations(rg), "dt_next": [cpu.dt_next, gpu.dt_next]})
+            rows.append(
+                {
+                    k: rel(by_id(cpu, getattr(cpu, f)), by_id(gpu, getattr(gpu, f)))
+                    for k, f in (("x", "positions"), ("v", "velocities"), ("rho", "densities"))
+                }
+                | {
+                    "same_order": bool(np.array_equal(cpu.ids, gpu.ids)),
+                    "it_cpu": iterations(rc),
+                    "it_cuda": iterations(rg),
+                    "dt_next": [cpu.dt_next, gpu.dt_next],
+                }
+            )
         out[method] = rows
     return out
 
@@ -82,16 +101,30 @@ def jet(method: str, r: float = 0.025):
     with a 27-particle block on its floor, into a sink 0.12 m downstream, inside a [domain] box:
     the count grows by emission and shrinks by compaction within 14 steps (test_emitters's jet,
     smaller and coarser)."""
-    return scene_from_dict({
-        "simulation": {"method": method, "particle_radius": r, "end_time": 1.0},
-        "time_step": {"dt_max": 0.005},
-        "fluid": [{"box": {"min": [0.0, -0.3, -0.1], "max": [0.2, -0.1, 0.1]}}],
-        "boundary": [{"name": "tank", "box": {"min": [-0.3, -0.3, -0.3], "max": [0.3, 0.3, 0.3]}}],
-        "emitter": [{"name": "jet", "position": [-0.2, 0.0, 0.0], "direction": [1, 0, 0], "width": 0.2,
-                     "height": 0.15, "velocity": 2.0, "start_time": 0.0, "end_time": 0.2}],
-        "sink": [{"name": "drain", "min": [-0.08, -0.1, -0.3], "max": [0.3, 0.3, 0.3]}],
-        "domain": {"min": [-0.3, -0.3, -0.3], "max": [0.3, 0.3, 0.3]},
-        "render": {"enabled": False}}, name=f"jet-{method}")
+    return scene_from_dict(
+        {
+            "simulation": {"method": method, "particle_radius": r, "end_time": 1.0},
+            "time_step": {"dt_max": 0.005},
+            "fluid": [{"box": {"min": [0.0, -0.3, -0.1], "max": [0.2, -0.1, 0.1]}}],
+            "boundary": [{"name": "tank", "box": {"min": [-0.3, -0.3, -0.3], "max": [0.3, 0.3, 0.3]}}],
+            "emitter": [
+                {
+                    "name": "jet",
+                    "position": [-0.2, 0.0, 0.0],
+                    "direction": [1, 0, 0],
+                    "width": 0.2,
+                    "height": 0.15,
+                    "velocity": 2.0,
+                    "start_time": 0.0,
+                    "end_time": 0.2,
+                }
+            ],
+            "sink": [{"name": "drain", "min": [-0.08, -0.1, -0.3], "max": [0.3, 0.3, 0.3]}],
+            "domain": {"min": [-0.3, -0.3, -0.3], "max": [0.3, 0.3, 0.3]},
+            "render": {"enabled": False},
+        },
+        name=f"jet-{method}",
+    )
 
 
 def case_emitters(steps: int = 14) -> dict:
@@ -108,12 +141,18 @@ def case_emitters(steps: int = 14) -> dict:
             ic, ig = cpu.ids, gpu.ids
             oc, og = np.argsort(ic), np.argsort(ig)
             same_ids = bool(len(ic) == len(ig) and np.array_equal(ic[oc], ig[og]))
-            row = {"n": [cpu.n_fluid, gpu.n_fluid], "emitted": [rc.emitted, rg.emitted],
-                   "removed": [rc.removed, rg.removed], "same_ids": same_ids,
-                   "capacity": [cpu.state.capacity, gpu.state.capacity]}
+            row = {
+                "n": [cpu.n_fluid, gpu.n_fluid],
+                "emitted": [rc.emitted, rg.emitted],
+                "removed": [rc.removed, rg.removed],
+                "same_ids": same_ids,
+                "capacity": [cpu.state.capacity, gpu.state.capacity],
+            }
             if same_ids and len(ic):
-                row |= {k: rel(getattr(cpu, f)[oc], getattr(gpu, f)[og])
-                        for k, f in (("x", "positions"), ("v", "velocities"), ("rho", "densities"))}
+                row |= {
+                    k: rel(getattr(cpu, f)[oc], getattr(gpu, f)[og])
+                    for k, f in (("x", "positions"), ("v", "velocities"), ("rho", "densities"))
+                }
             rows.append(row)
         out[method] = rows
     return out
@@ -125,15 +164,29 @@ def paddle_and_crate(method: str, r: float = 0.04):
     body of density 500 driven by the fluid's reaction), set into the fluid off its lattice: a
     crate face on the lattice puts fluid-wall pairs exactly at the support radius, where the two
     backends' last bits decide whether the first touch happens this step or the next."""
-    return scene_from_dict({
-        "simulation": {"method": method, "particle_radius": r, "end_time": 1.0},
-        "fluid": [{"box": {"min": [0, 0, 0], "max": [0.6, 0.3, 0.4]}}],
-        "boundary": [{"name": "tank", "box": {"min": [0, 0, 0], "max": [1.0, 0.6, 0.4]}},
-                     {"name": "paddle", "role": "obstacle", "box": {"min": [0.7, 0, 0], "max": [0.75, 0.6, 0.4]},
-                      "motion": {"type": "sinusoid", "amplitude": 0.05, "period": 0.5}},
-                     {"name": "crate", "role": "obstacle", "box": {"min": [0.213, 0.207, 0.107], "max": [0.413, 0.307, 0.307]},
-                      "density": 500.0}],
-        "render": {"enabled": False}}, name=f"paddle-{method}")
+    return scene_from_dict(
+        {
+            "simulation": {"method": method, "particle_radius": r, "end_time": 1.0},
+            "fluid": [{"box": {"min": [0, 0, 0], "max": [0.6, 0.3, 0.4]}}],
+            "boundary": [
+                {"name": "tank", "box": {"min": [0, 0, 0], "max": [1.0, 0.6, 0.4]}},
+                {
+                    "name": "paddle",
+                    "role": "obstacle",
+                    "box": {"min": [0.7, 0, 0], "max": [0.75, 0.6, 0.4]},
+                    "motion": {"type": "sinusoid", "amplitude": 0.05, "period": 0.5},
+                },
+                {
+                    "name": "crate",
+                    "role": "obstacle",
+                    "box": {"min": [0.213, 0.207, 0.107], "max": [0.413, 0.307, 0.307]},
+                    "density": 500.0,
+                },
+            ],
+            "render": {"enabled": False},
+        },
+        name=f"paddle-{method}",
+    )
 
 
 def case_moving_walls(steps: int = 8) -> dict:
@@ -152,15 +205,25 @@ def case_moving_walls(steps: int = 8) -> dict:
             oc, og = np.argsort(cpu.ids), np.argsort(gpu.ids)
             bc, bg = cpu.walls.bodies[0], gpu.walls.bodies[0]
             gvb = [float(np.abs(s.be.to_host(s.method.data.dens.gvb)).max()) for s in (cpu, gpu)]
-            rows.append({k: rel(getattr(cpu, f)[oc], getattr(gpu, f)[og])
-                         for k, f in (("x", "positions"), ("v", "velocities"), ("rho", "densities"))} | {
-                         "same_ids": bool(np.array_equal(cpu.ids[oc], gpu.ids[og])),
-                         "walls_x": rel(cpu.boundary.x, gpu.boundary.x), "walls_v": rel(cpu.boundary.v, gpu.boundary.v),
-                         "crate_c": rel(bc.c, bg.c), "crate_v": rel(bc.v, bg.v), "gvb": gvb,
-                         "walls_speed": float(np.abs(cpu.boundary.v).max()), "crate_speed": float(np.linalg.norm(bc.v)),
-                         "crate_force": rel(cpu.walls.force[bc.group][0], gpu.walls.force[bc.group][0]),
-                         "crate_force_n": float(np.linalg.norm(cpu.walls.force[bc.group][0])),
-                         "dt_next": [cpu.dt_next, gpu.dt_next]})
+            rows.append(
+                {
+                    k: rel(getattr(cpu, f)[oc], getattr(gpu, f)[og])
+                    for k, f in (("x", "positions"), ("v", "velocities"), ("rho", "densities"))
+                }
+                | {
+                    "same_ids": bool(np.array_equal(cpu.ids[oc], gpu.ids[og])),
+                    "walls_x": rel(cpu.boundary.x, gpu.boundary.x),
+                    "walls_v": rel(cpu.boundary.v, gpu.boundary.v),
+                    "crate_c": rel(bc.c, bg.c),
+                    "crate_v": rel(bc.v, bg.v),
+                    "gvb": gvb,
+                    "walls_speed": float(np.abs(cpu.boundary.v).max()),
+                    "crate_speed": float(np.linalg.norm(bc.v)),
+                    "crate_force": rel(cpu.walls.force[bc.group][0], gpu.walls.force[bc.group][0]),
+                    "crate_force_n": float(np.linalg.norm(cpu.walls.force[bc.group][0])),
+                    "dt_next": [cpu.dt_next, gpu.dt_next],
+                }
+            )
         out[method] = rows
     return out
 
@@ -174,18 +237,29 @@ def case_float32(steps: int = 8) -> dict:
         dt = cpu.dt_next
         rc = cpu.step(dt)
         rg = gpu.step(dt)
-        diff = {f: np.abs(by_id(cpu, getattr(cpu, f)) - by_id(gpu, getattr(gpu, f))).max()
-                for f in ("positions", "velocities", "densities")}
-        rows.append({"dx_over_d": float(diff["positions"] / d), "drho_over_rho0": float(diff["densities"] / rho0),
-                     "dv": float(diff["velocities"]),
-                     "density_error_mean": [rc.density_error_mean, rg.density_error_mean],
-                     "density_error_max": [rc.density_error_max, rg.density_error_max],
-                     "dtype": str(gpu.be.to_host(gpu.state.x).dtype)})
+        diff = {
+            f: np.abs(by_id(cpu, getattr(cpu, f)) - by_id(gpu, getattr(gpu, f))).max()
+            for f in ("positions", "velocities", "densities")
+        }
+        rows.append(
+            {
+                "dx_over_d": float(diff["positions"] / d),
+                "drho_over_rho0": float(diff["densities"] / rho0),
+                "dv": float(diff["velocities"]),
+                "density_error_mean": [rc.density_error_mean, rg.density_error_mean],
+                "density_error_max": [rc.density_error_max, rg.density_error_max],
+                "dtype": str(gpu.be.to_host(gpu.state.x).dtype),
+            }
+        )
     # free fall: a 3^3 block without walls, 0.3 m/s sideways
-    fall = scene_from_dict({"simulation": {"method": "ipsph", "particle_radius": 0.025, "end_time": 1.0},
-                            "time_step": {"dt_max": 0.005},
-                            "fluid": [{"box": {"min": [0.0, 0.0, 0.0], "max": [0.2, 0.2, 0.2]}, "velocity": [0.3, 0, 0]}]},
-                           name="fall")
+    fall = scene_from_dict(
+        {
+            "simulation": {"method": "ipsph", "particle_radius": 0.025, "end_time": 1.0},
+            "time_step": {"dt_max": 0.005},
+            "fluid": [{"box": {"min": [0.0, 0.0, 0.0], "max": [0.2, 0.2, 0.2]}, "velocity": [0.3, 0, 0]}],
+        },
+        name="fall",
+    )
     fx, fv, bx, _ = sample_scene(fall)
     sim = Simulation(fall, fx, fv, bx, backend=get_backend("cuda", "float32"))
     t, vy, vx = [], [], []
@@ -214,13 +288,17 @@ def case_passes() -> dict:
     h = cpu.support
     oracle_f = brute_force_neighbours(xs, xs, h, True)
     oracle_b = brute_force_neighbours(xs, cpu.boundary.x, h, False)
-    res["fluid_vs_oracle"] = all(np.array_equal(np.sort(host["fluid"][i, :host["fluid_count"][i]]), oracle_f[i])
-                                 for i in range(n))
-    res["walls_vs_oracle"] = all(np.array_equal(np.sort(host["boundary"][i, :host["boundary_count"][i]]), oracle_b[i])
-                                 for i in range(n))
-    res["rows_as_cpu"] = all(np.array_equal(host["fluid"][i, :c], lc.fluid[i, :c]) and
-                             np.array_equal(host["boundary"][i, :lc.boundary_count[i]], lc.boundary[i, :lc.boundary_count[i]])
-                             for i, c in enumerate(lc.fluid_count))
+    res["fluid_vs_oracle"] = all(
+        np.array_equal(np.sort(host["fluid"][i, : host["fluid_count"][i]]), oracle_f[i]) for i in range(n)
+    )
+    res["walls_vs_oracle"] = all(
+        np.array_equal(np.sort(host["boundary"][i, : host["boundary_count"][i]]), oracle_b[i]) for i in range(n)
+    )
+    res["rows_as_cpu"] = all(
+        np.array_equal(host["fluid"][i, :c], lc.fluid[i, :c])
+        and np.array_equal(host["boundary"][i, : lc.boundary_count[i]], lc.boundary[i, : lc.boundary_count[i]])
+        for i, c in enumerate(lc.fluid_count)
+    )
     res["mean_neighbours"] = float(host["fluid_count"].mean())
     fl = cpu.method.fluid
     dc, dg = Densities.allocate(bc, n), Densities.allocate(bg, n)
@@ -264,16 +342,20 @@ def case_passes() -> dict:
     # reductions and permutations
     m = rng.random(n)
     diffs["mean"] = abs(bc.mean(lam) - bg.mean(bg.asarray(lam))) / bc.mean(lam)
-    diffs["mean_positive"] = abs(bc.mean_positive(lam - 0.5) - bg.mean_positive(bg.asarray(lam - 0.5))) \
-        / bc.mean_positive(lam - 0.5)
+    diffs["mean_positive"] = abs(
+        bc.mean_positive(lam - 0.5) - bg.mean_positive(bg.asarray(lam - 0.5))
+    ) / bc.mean_positive(lam - 0.5)
     se_c, se_g = bc.speed_energy(v, m), bg.speed_energy(vg, bg.asarray(m))
     diffs["speed_energy"] = max(abs(se_c[0] - se_g[0]) / se_c[0], abs(se_c[1] - se_g[1]) / se_c[1])
     res["max_exact"] = bg.max(bg.asarray(lam)) == float(lam.max())
     bad = xs.copy()
     bad[n // 2, 1] = np.nan
     lo, hi = np.full(3, -np.inf), np.full(3, np.inf)
-    res["unhealthy"] = [bg.first_unhealthy(bg.asarray(bad), vg, lo, hi), bc.first_unhealthy(bad, v, lo, hi),
-                        bg.first_unhealthy(xg, vg, lo, hi)]
+    res["unhealthy"] = [
+        bg.first_unhealthy(bg.asarray(bad), vg, lo, hi),
+        bc.first_unhealthy(bad, v, lo, hi),
+        bg.first_unhealthy(xg, vg, lo, hi),
+    ]
     perm = rng.permutation(n)
     taken = bg.take(bg.asarray(v), bg.asarray(perm, dtype="int64"))
     back = bg.take(bg.asarray(v), bg.asarray(perm, dtype="int64"))
@@ -286,7 +368,10 @@ def case_passes() -> dict:
     from ipsph.errors import ConfigError
 
     def exhausted(*a, **k):
-        raise CudaAPIError("CUresult.CUDA_ERROR_OUT_OF_MEMORY", "Call to cuMemAlloc results in CUDA_ERROR_OUT_OF_MEMORY")
+        raise CudaAPIError(
+            "CUresult.CUDA_ERROR_OUT_OF_MEMORY", "Call to cuMemAlloc results in CUDA_ERROR_OUT_OF_MEMORY"
+        )
+
     real, _cuda.cuda.device_array = _cuda.cuda.device_array, exhausted
     try:
         bg.zeros(10**8, (3,))
@@ -310,15 +395,16 @@ def case_record() -> dict:
     """Every kernel launch of short runs of the three methods (both precisions) and of the
     checks above, as (kernel, stride of its scratch block, argument types), for case_ptx."""
     from ipsph.backends import cuda_passes
+
     seen = {}
     plain = cuda_passes.run
 
     def recording(kernel, blocks, threads, *args):
         fn = getattr(kernel, "fn", None) or kernel.py_func
-        key = json.dumps([fn.__module__, fn.__name__, getattr(kernel, "strides", None),
-                          [_type_of(a) for a in args]])
+        key = json.dumps([fn.__module__, fn.__name__, getattr(kernel, "strides", None), [_type_of(a) for a in args]])
         seen[key] = seen.get(key, 0) + 1
         plain(kernel, blocks, threads, *args)
+
     cuda_passes.run = recording
     for method in ("ipsph", "pf", "dfsph"):
         for precision in ("float64", "float32"):
@@ -327,7 +413,7 @@ def case_record() -> dict:
             sim = Simulation(scene, fx, fv, bx, backend=get_backend("cuda", precision))
             sim.step()
             sim.step()  # the warm starts (they need the previous step)
-    for precision in ("float64", "float32"):   # moving walls (the wall_rate pass), an emitter (views, concat)
+    for precision in ("float64", "float32"):  # moving walls (the wall_rate pass), an emitter (views, concat)
         for scene in (paddle_and_crate("ipsph"), jet("ipsph")):
             fx, fv, bx, _ = sample_scene(scene)
             Simulation(scene, fx, fv, bx, backend=get_backend("cuda", precision)).step()
@@ -342,6 +428,7 @@ def case_ptx() -> dict:
     from numba import types as nt
     from ipsph.backends._cuda import cuda
     from ipsph.backends import cuda_passes
+
     rec = subprocess.run([sys.executable, __file__, "record"], capture_output=True, text=True, check=True)
     launches = json.loads(rec.stdout)["launches"]
 
@@ -350,6 +437,7 @@ def case_ptx() -> dict:
             return {"float": nt.float64, "int": nt.int64, "bool": nt.boolean}.get(t[0]) or getattr(nt, t[0])
         dtype, ndim, contiguous = t
         return nt.Array(getattr(nt, dtype), ndim, "C" if contiguous else "A")
+
     compiled, failed, local_bytes = [], [], {}
     for module, name, strides, types in launches:
         if strides is not None:

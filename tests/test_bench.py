@@ -3,6 +3,7 @@
 Fast tests only: one tiny worker run (default scene, 0.02 s simulated); everything else uses
 synthetic results. The real benchmark is run by hand (docs/performance.md).
 """
+
 from __future__ import annotations
 
 import math
@@ -13,8 +14,15 @@ import pytest
 
 from ipsph.benchmark import report
 from ipsph.benchmark.ours import run_ours
-from ipsph.benchmark.scenes import (PIPELINES, pipeline_path, resolve_scene, scaling_count, scaling_dt_max,
-                                    scaling_overrides, scaling_peer_scene)
+from ipsph.benchmark.scenes import (
+    PIPELINES,
+    pipeline_path,
+    resolve_scene,
+    scaling_count,
+    scaling_dt_max,
+    scaling_overrides,
+    scaling_peer_scene,
+)
 from ipsph.cli import main as cli_main
 from ipsph.errors import ConfigError
 
@@ -79,31 +87,54 @@ def test_worker_failure_carries_stderr():
 
 # -- report ------------------------------------------------------------------------------------------
 def _ours(ms, wall, err=0.02, others=0.0, fluid=1000):
-    return {"fluid_particles": fluid, "boundary_particles": 500, "steps": 100, "ms_per_step_median": ms,
-            "ms_per_step_mean": ms, "wall_seconds_per_sim_second": wall, "density_error_mean_pct": err,
-            "density_error_worst_pct": 2 * err, "peak_rss_mb": 100.0,
-            "phases_ms": {"step": ms, "divergenceSolve": ms / 4, "solvePDConstraints": ms / 2},
-            "phases_ms_mean": {"step": ms, "divergenceSolve": ms / 4, "solvePDConstraints": ms / 2},
-            "load": {"others_busy_mean": others / 2, "cpus": 2, "loadavg_mean": 2 + others}}
+    return {
+        "fluid_particles": fluid,
+        "boundary_particles": 500,
+        "steps": 100,
+        "ms_per_step_median": ms,
+        "ms_per_step_mean": ms,
+        "wall_seconds_per_sim_second": wall,
+        "density_error_mean_pct": err,
+        "density_error_worst_pct": 2 * err,
+        "peak_rss_mb": 100.0,
+        "phases_ms": {"step": ms, "divergenceSolve": ms / 4, "solvePDConstraints": ms / 2},
+        "phases_ms_mean": {"step": ms, "divergenceSolve": ms / 4, "solvePDConstraints": ms / 2},
+        "load": {"others_busy_mean": others / 2, "cpus": 2, "loadavg_mean": 2 + others},
+    }
 
 
 def _peer(ms, wall, others=0.0):
-    return {"fluid_particles": 1000, "boundary_particles": 0, "steps": 80, "ms_per_step": ms,
-            "ms_per_step_mean": ms, "wall_seconds_per_sim_second": wall, "density_error_mean_pct": 0.06,
-            "density_error_worst_pct": 0.1, "peak_rss_mb": 50.0, "pressure_solve_ms": ms / 2,
-            "divergence_solve_ms": ms / 5, "step_ms": ms,
-            "load": {"others_busy_mean": others / 2, "cpus": 2, "loadavg_mean": 2.0}}
+    return {
+        "fluid_particles": 1000,
+        "boundary_particles": 0,
+        "steps": 80,
+        "ms_per_step": ms,
+        "ms_per_step_mean": ms,
+        "wall_seconds_per_sim_second": wall,
+        "density_error_mean_pct": 0.06,
+        "density_error_worst_pct": 0.1,
+        "peak_rss_mb": 50.0,
+        "pressure_solve_ms": ms / 2,
+        "divergence_solve_ms": ms / 5,
+        "step_ms": ms,
+        "load": {"others_busy_mean": others / 2, "cpus": 2, "loadavg_mean": 2.0},
+    }
 
 
 def _rows():
     n = report.normalise
-    return [n(_ours(10, 3.0), "ours", "ipsph", "S", 0), n(_peer(8, 2.0), "peer", "dfsph", "S", 0),
-            n(_peer(20, 6.0), "peer", "pf", "S", 0),
-            n(_ours(12, 4.0), "ours", "ipsph", "S", 1), n(_peer(9, 2.0), "peer", "dfsph", "S", 1),
-            n(_peer(20, 6.0), "peer", "pf", "S", 1),
-            # a loaded run: 1.5 other cores; its 100 ms must not enter the median
-            n(_ours(100, 30.0, others=1.5), "ours", "ipsph", "S", 2), n(_peer(10, 2.0), "peer", "dfsph", "S", 2),
-            n(_peer(20, 6.0), "peer", "pf", "S", 2)]
+    return [
+        n(_ours(10, 3.0), "ours", "ipsph", "S", 0),
+        n(_peer(8, 2.0), "peer", "dfsph", "S", 0),
+        n(_peer(20, 6.0), "peer", "pf", "S", 0),
+        n(_ours(12, 4.0), "ours", "ipsph", "S", 1),
+        n(_peer(9, 2.0), "peer", "dfsph", "S", 1),
+        n(_peer(20, 6.0), "peer", "pf", "S", 1),
+        # a loaded run: 1.5 other cores; its 100 ms must not enter the median
+        n(_ours(100, 30.0, others=1.5), "ours", "ipsph", "S", 2),
+        n(_peer(10, 2.0), "peer", "dfsph", "S", 2),
+        n(_peer(20, 6.0), "peer", "pf", "S", 2),
+    ]
 
 
 def test_median_excludes_loaded_runs():
@@ -122,7 +153,7 @@ def test_scene_table_prints_loaded_run_and_ratios():
     assert "IPSPH (median of 2)" in text
     assert "IPSPH [loaded, run 3]" in text and "100.00" in text  # shown, not counted
     assert "IPSPH / SPH-DFSPH: wall per simulated second 1.75x" in text  # 3.5 / 2.0
-    assert "IPSPH / SPH-PF: wall per simulated second 0.58x" in text     # 3.5 / 6.0
+    assert "IPSPH / SPH-PF: wall per simulated second 0.58x" in text  # 3.5 / 6.0
     md = report.scene_tables(report.summarise(_rows(), 0.5), markdown=True, max_load=0.5)
     header = next(line for line in md.splitlines() if line.startswith("| method"))
     assert header.count("|") == len(report.SCENE_HEADERS) + 1
@@ -147,8 +178,16 @@ def test_ratios_fall_back_to_loaded_runs_and_say_so():
 
 
 def test_failed_run_is_a_note():
-    rows = _rows()[:3] + [{"scene": "S", "label": "PF", "source": "ours", "method": "pf", "repeat": 0,
-                           "error": "ipsph worker failed (exit status 3)\nstderr"}]
+    rows = _rows()[:3] + [
+        {
+            "scene": "S",
+            "label": "PF",
+            "source": "ours",
+            "method": "pf",
+            "repeat": 0,
+            "error": "ipsph worker failed (exit status 3)\nstderr",
+        }
+    ]
     text = report.scene_tables(report.summarise(rows, 0.5), markdown=False, max_load=0.5)
     assert "PF run 1 failed: ipsph worker failed (exit status 3)" in text
 
@@ -156,8 +195,15 @@ def test_failed_run_is_a_note():
 def test_table1_has_the_paper_columns():
     text = report.table1(report.summarise(_rows(), 0.5), markdown=True)
     head = text.splitlines()[0]
-    for col in ("avg divergenceSolve ms", "avg solvePDConstraints ms", "avg ms / step", "s wall / sim s",
-                "density err mean %", "worst %", "steps"):
+    for col in (
+        "avg divergenceSolve ms",
+        "avg solvePDConstraints ms",
+        "avg ms / step",
+        "s wall / sim s",
+        "density err mean %",
+        "worst %",
+        "steps",
+    ):
         assert col in head
     ipsph = next(line for line in text.splitlines() if "| IPSPH (median of 2) |" in line)
     assert "| 2.75 | 5.50 |" in ipsph  # mean phases of 10 and 12 ms steps: div 1/4, PD 1/2
@@ -166,20 +212,36 @@ def test_table1_has_the_paper_columns():
 
 
 def test_scaling_table_reports_per_particle_costs():
-    row = report.normalise({**_ours(50.0, 1.0, fluid=100_000), "us_per_particle_step": 0.5,
-                            "bytes_per_particle_rss": 1200.0, "bytes_per_particle_solver": 900.0,
-                            "bytes_per_particle_pair_cache": 321.0},
-                           "ours", "ipsph", "scaling")
+    row = report.normalise(
+        {
+            **_ours(50.0, 1.0, fluid=100_000),
+            "us_per_particle_step": 0.5,
+            "bytes_per_particle_rss": 1200.0,
+            "bytes_per_particle_solver": 900.0,
+            "bytes_per_particle_pair_cache": 321.0,
+        },
+        "ours",
+        "ipsph",
+        "scaling",
+    )
     text = report.scaling_table([row], markdown=False, max_load=0.5)
     assert "100,000" in text and "0.500" in text and "1200" in text and "900" in text and "321" in text
 
 
 def test_scaling_table_gives_iterations_and_error_for_ours_and_the_peer():
     """The per-particle cost depends on how many solver iterations a step took: both sides show them."""
-    ours = report.normalise({**_ours(50.0, 1.0, err=0.00002, fluid=100_000), "pd_passes_mean": 2.0,
-                             "divergence_iterations_mean": 1.5}, "ours", "ipsph", "scaling")
-    peer = report.normalise({**_peer(400.0, 9.0), "fluid_particles": 100_000, "iterations_mean": 26.1,
-                             "divergence_iterations_mean": 4.5}, "peer", "dfsph", "scaling")
+    ours = report.normalise(
+        {**_ours(50.0, 1.0, err=0.00002, fluid=100_000), "pd_passes_mean": 2.0, "divergence_iterations_mean": 1.5},
+        "ours",
+        "ipsph",
+        "scaling",
+    )
+    peer = report.normalise(
+        {**_peer(400.0, 9.0), "fluid_particles": 100_000, "iterations_mean": 26.1, "divergence_iterations_mean": 4.5},
+        "peer",
+        "dfsph",
+        "scaling",
+    )
     lines = report.scaling_table([ours, peer], markdown=True, max_load=0.5).splitlines()
     assert "| iterations (pressure / divergence) | density err mean % |" in lines[0]
     assert "| 2.0 / 1.5 | 2e-05 |" in lines[2]
@@ -190,6 +252,7 @@ def test_scaling_table_gives_iterations_and_error_for_ours_and_the_peer():
 def test_scaling_overrides_give_the_target_count():
     from ipsph import sampling
     from ipsph.scene import default_scene_path, load_scene
+
     for n in (10_000, 100_000, 1_000_000):
         scene = load_scene(default_scene_path(), scaling_overrides(n))
         count = sampling.estimate_fluid_count(scene.fluids[0], scene.particle_radius)
@@ -206,6 +269,7 @@ def test_scaling_peer_scene_is_the_same_dam_break(tmp_path):
 
     from ipsph import meshes
     from ipsph.scene import default_scene_path, lattice_counts, load_scene
+
     n = 100_000
     path = scaling_peer_scene(n, tmp_path)
     doc = json.loads(path.read_text())
@@ -238,17 +302,18 @@ def test_resolve_scene_names_and_errors(tmp_path):
 
 
 def test_bench_cli_missing_scene_exits_2(tmp_path, capsys):
-    code = cli_main(["bench", "--scenes", "NoSuchScene", "--scene-dir", str(tmp_path), "--no-peer",
-                     "--repeats", "1"])
+    code = cli_main(["bench", "--scenes", "NoSuchScene", "--scene-dir", str(tmp_path), "--no-peer", "--repeats", "1"])
     assert code == 2
     assert "NoSuchScene" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("stem, count", [("breaking_dam", 29 ** 3), ("double_dam_break", 2 * 12 * 16 * 11),
-                                         ("two_dragons", 19 * 39 * 39)])
+@pytest.mark.parametrize(
+    "stem, count", [("breaking_dam", 29**3), ("double_dam_break", 2 * 12 * 16 * 11), ("two_dragons", 19 * 39 * 39)]
+)
 def test_pipelines_load_with_their_particle_counts(stem, count):
     from ipsph import sampling
     from ipsph.scene import load_scene
+
     assert stem in PIPELINES
     scene = load_scene(pipeline_path(stem))
     assert sum(len(sampling.fluid_positions(f, scene.particle_radius)) for f in scene.fluids) == count
@@ -260,12 +325,25 @@ def test_pipelines_load_with_their_particle_counts(stem, count):
 
 def test_from_json_reprints_saved_results(tmp_path, capsys):
     import json
-    saved = {"started": "t", "machine": {"cpu_model": "cpu", "usable_cores": 2}, "threads": 2,
-             "runs": _rows(), "scaling": [],
-             "first_frame": [{"cache": "cold", "repeat": k, "seconds": s, "ok": True,
-                              "split": {"total": s - 0.5, "setup": 2.0, "compile": s - 3.0, "stepping": 0.5}}
-                             for k, s in enumerate((31.0, 24.0, 40.0))]
-             + [{"cache": "warm", "repeat": k, "seconds": s, "ok": True} for k, s in enumerate((3.0, 2.0))]}
+
+    saved = {
+        "started": "t",
+        "machine": {"cpu_model": "cpu", "usable_cores": 2},
+        "threads": 2,
+        "runs": _rows(),
+        "scaling": [],
+        "first_frame": [
+            {
+                "cache": "cold",
+                "repeat": k,
+                "seconds": s,
+                "ok": True,
+                "split": {"total": s - 0.5, "setup": 2.0, "compile": s - 3.0, "stepping": 0.5},
+            }
+            for k, s in enumerate((31.0, 24.0, 40.0))
+        ]
+        + [{"cache": "warm", "repeat": k, "seconds": s, "ok": True} for k, s in enumerate((3.0, 2.0))],
+    }
     path = tmp_path / "b.json"
     path.write_text(json.dumps(saved))
     assert cli_main(["bench", "--from-json", str(path), "--markdown"]) == 0
@@ -285,14 +363,26 @@ def test_table1_shows_loaded_runs_marked():
 
 
 def test_table1_dragon_mesh_must_exist(tmp_path, capsys):
-    code = cli_main(["bench", "--table1", "--pipelines", "two_dragons", "--no-peer", "--repeats", "1",
-                     "--dragon-mesh", str(tmp_path / "Dragon_50k.obj")])
+    code = cli_main(
+        [
+            "bench",
+            "--table1",
+            "--pipelines",
+            "two_dragons",
+            "--no-peer",
+            "--repeats",
+            "1",
+            "--dragon-mesh",
+            str(tmp_path / "Dragon_50k.obj"),
+        ]
+    )
     assert code == 2
     assert "--dragon-mesh" in capsys.readouterr().err
 
 
 def test_render_cost_reports_a_time_or_why_not():
     from ipsph.benchmark.render_cost import render_cost, table
+
     row = render_cost(1000, frames=1)
     if row.get("error"):
         assert row["particles"] == 1000 and row["error"]
@@ -307,19 +397,29 @@ def test_render_cost_reports_a_time_or_why_not():
 
 def test_render_overhead_table_judges_the_median_ratio():
     from ipsph.benchmark.render_cost import overhead_table
-    s = {"pairs": [{}] * 3, "counted": 3, "plain_seconds": 10.0, "render_seconds": 12.0, "ratio_median": 1.2,
-         "plain_cpu": 19.0, "render_cpu": 21.0, "ok": True}
+
+    s = {
+        "pairs": [{}] * 3,
+        "counted": 3,
+        "plain_seconds": 10.0,
+        "render_seconds": 12.0,
+        "ratio_median": 1.2,
+        "plain_cpu": 19.0,
+        "render_cpu": 21.0,
+        "ok": True,
+    }
     assert "x1.200" in overhead_table(s, markdown=True) and ": met" in overhead_table(s, markdown=False)
     assert "NOT met" in overhead_table({**s, "ratio_median": 1.3}, markdown=False)
 
 
 def test_our_workers_keep_the_openmp_default_policy(monkeypatch):
     from ipsph.benchmark.ours import ours_env
+
     monkeypatch.delenv("OMP_WAIT_POLICY", raising=False)
     assert "OMP_WAIT_POLICY" not in ours_env(2)  # OpenMP's default, as the peer's workers
     assert ours_env(2)["NUMBA_NUM_THREADS"] == "2"
     monkeypatch.setenv("OMP_WAIT_POLICY", "active")
-    assert ours_env(2)["OMP_WAIT_POLICY"] == "active"    # a user's choice wins
+    assert ours_env(2)["OMP_WAIT_POLICY"] == "active"  # a user's choice wins
 
 
 def test_baseline_rows_get_their_own_label_and_a_finer_ratio():

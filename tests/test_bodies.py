@@ -1,5 +1,6 @@
 """Dynamic rigid bodies two-way coupled to the fluid (issue 19; ipsph.rigid, method.md section 8):
 momentum conservation, contacts without tunnelling, floating and sinking, the outputs."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -18,18 +19,28 @@ def test_box_mass_properties_are_the_closed_surfaces():
     assert volume == pytest.approx(0.008, rel=1e-12) and mass == pytest.approx(4.0, rel=1e-12)
     assert np.allclose(com, [0.2, 0.1, 0.05], atol=1e-12)
     # a cuboid about its centre: I_xx = m (b^2 + c^2) / 12, ...
-    assert np.allclose(inertia, np.diag([4.0 * (0.04 + 0.01) / 12, 4.0 * (0.16 + 0.01) / 12,
-                                         4.0 * (0.16 + 0.04) / 12]), atol=1e-12)
+    assert np.allclose(
+        inertia, np.diag([4.0 * (0.04 + 0.01) / 12, 4.0 * (0.16 + 0.01) / 12, 4.0 * (0.16 + 0.04) / 12]), atol=1e-12
+    )
 
 
 def _collision(method: str) -> dict:
     """No walls, no gravity, no viscosity: a spinning body flies into a block of water."""
-    return {"simulation": {"method": method, "particle_radius": R, "end_time": 0.3, "gravity": [0, 0, 0],
-                           "viscosity": 0.0},
-            "fluid": [{"box": {"min": [0, 0, 0], "max": [0.3, 0.3, 0.3]}}],
-            "boundary": [{"name": "ball", "role": "obstacle", "box": {"min": [0.4, 0.1, 0.1], "max": [0.5, 0.2, 0.2]},
-                          "density": 1000.0, "velocity": [-1.0, 0.0, 0.0], "angular_velocity": [0.0, 0.0, 30.0]}],
-            "render": {"enabled": False}}
+    return {
+        "simulation": {"method": method, "particle_radius": R, "end_time": 0.3, "gravity": [0, 0, 0], "viscosity": 0.0},
+        "fluid": [{"box": {"min": [0, 0, 0], "max": [0.3, 0.3, 0.3]}}],
+        "boundary": [
+            {
+                "name": "ball",
+                "role": "obstacle",
+                "box": {"min": [0.4, 0.1, 0.1], "max": [0.5, 0.2, 0.2]},
+                "density": 1000.0,
+                "velocity": [-1.0, 0.0, 0.0],
+                "angular_velocity": [0.0, 0.0, 30.0],
+            }
+        ],
+        "render": {"enabled": False},
+    }
 
 
 # DFSPH's wall impulses are exactly the reaction the body gets (the solves run at fixed positions, so
@@ -62,12 +73,20 @@ def test_a_dropped_body_lands_on_the_floor_and_rests_without_tunnelling():
     """Contact with a static wall: a box falls 0.2 m onto the tank floor (no fluid beneath it), at
     2 m/s, and comes to rest on it: its particles stay above the floor's and end in the contact band
     d, level, carried by the contact."""
-    scene = {"simulation": {"particle_radius": R, "end_time": 0.6, "fit_wall_volumes": True},   # no splash
-             "fluid": [{"box": {"min": [0.0, 0.0, 0.0], "max": [0.15, 0.15, 0.15]}}],   # out of the way
-             "boundary": [{"name": "tank", "box": {"min": [0, 0, 0], "max": [0.8, 0.8, 0.8]}},
-                          {"name": "crate", "role": "obstacle", "box": {"min": [0.4, 0.3, 0.4], "max": [0.6, 0.4, 0.6]},
-                           "density": 800.0}],
-             "render": {"enabled": False}}
+    scene = {
+        "simulation": {"particle_radius": R, "end_time": 0.6, "fit_wall_volumes": True},  # no splash
+        "fluid": [{"box": {"min": [0.0, 0.0, 0.0], "max": [0.15, 0.15, 0.15]}}],  # out of the way
+        "boundary": [
+            {"name": "tank", "box": {"min": [0, 0, 0], "max": [0.8, 0.8, 0.8]}},
+            {
+                "name": "crate",
+                "role": "obstacle",
+                "box": {"min": [0.4, 0.3, 0.4], "max": [0.6, 0.4, 0.6]},
+                "density": 800.0,
+            },
+        ],
+        "render": {"enabled": False},
+    }
     sim = Simulation.from_scene(scene)
     body = sim.walls.bodies[0]
     b = sim.boundary
@@ -80,10 +99,10 @@ def test_a_dropped_body_lands_on_the_floor_and_rests_without_tunnelling():
     sim.run(on_step=on_step)
     d = 2 * R
     assert min(lowest) > 0.0, "the body went through the floor's particle layer"
-    assert 0.0 < lowest[-1] < d                       # resting in the contact band above the floor
+    assert 0.0 < lowest[-1] < d  # resting in the contact band above the floor
     assert np.linalg.norm(body.v) < 0.05
     tilt = 2 * np.degrees(np.arccos(min(abs(body.q[0]), 1.0)))
-    assert tilt < 3.0, tilt   # the single contact rocks it by about 1 degree
+    assert tilt < 3.0, tilt  # the single contact rocks it by about 1 degree
     # the last 20 steps (0.1 s): the contact carries the weight on average (it rocks: +-15 % per step)
     assert np.mean(support[-20:]) == pytest.approx(body.mass * 9.81, rel=0.1)
 
@@ -91,14 +110,25 @@ def test_a_dropped_body_lands_on_the_floor_and_rests_without_tunnelling():
 def _two_crates() -> dict:
     """A light (500 kg/m^3) and a heavy (2000 kg/m^3) crate side by side in a tank of water, both
     placed half submerged."""
+
     def crate(name, x0, density):
-        return {"name": name, "role": "obstacle", "density": density,
-                "box": {"min": [x0, 0.25, 0.3], "max": [x0 + 0.3, 0.4, 0.6]}}
-    return {"simulation": {"particle_radius": R, "end_time": 1.0, "fit_wall_volumes": True},
-            "fluid": [{"box": {"min": [0, 0, 0], "max": [1.2, 0.35, 0.9]}}],
-            "boundary": [{"name": "tank", "box": {"min": [0, 0, 0], "max": [1.2, 0.7, 0.9]}},
-                         crate("light", 0.15, 500.0), crate("heavy", 0.75, 2000.0)],
-            "render": {"enabled": False}}
+        return {
+            "name": name,
+            "role": "obstacle",
+            "density": density,
+            "box": {"min": [x0, 0.25, 0.3], "max": [x0 + 0.3, 0.4, 0.6]},
+        }
+
+    return {
+        "simulation": {"particle_radius": R, "end_time": 1.0, "fit_wall_volumes": True},
+        "fluid": [{"box": {"min": [0, 0, 0], "max": [1.2, 0.35, 0.9]}}],
+        "boundary": [
+            {"name": "tank", "box": {"min": [0, 0, 0], "max": [1.2, 0.7, 0.9]}},
+            crate("light", 0.15, 500.0),
+            crate("heavy", 0.75, 2000.0),
+        ],
+        "render": {"enabled": False},
+    }
 
 
 def test_a_light_crate_floats_a_heavy_one_sinks_and_neither_fills_with_fluid():
@@ -113,8 +143,7 @@ def test_a_light_crate_floats_a_heavy_one_sinks_and_neither_fills_with_fluid():
         x = sim.positions
         for body in (light, heavy):
             rel = (x - body.c) @ body.rotation()
-            inside[0] = max(inside[0], int(np.all(np.abs(rel) < np.array([0.15, 0.075, 0.15]) - 0.5 * R,
-                                                  axis=1).sum()))
+            inside[0] = max(inside[0], int(np.all(np.abs(rel) < np.array([0.15, 0.075, 0.15]) - 0.5 * R, axis=1).sum()))
         lift.append(light.force[1])
 
     sim.run(on_step=on_step)
@@ -123,4 +152,4 @@ def test_a_light_crate_floats_a_heavy_one_sinks_and_neither_fills_with_fluid():
     assert light.c[1] - 0.075 < level < light.c[1] + 0.075, "the light crate must float at the surface"
     assert heavy.c[1] - 0.075 < 2.5 * 2 * R, "the heavy crate must reach the floor (within the fluid film)"
     # over the last 0.3 s the fluid carries the floating crate's weight (it still heaves: +-25 %)
-    assert np.mean(lift[-len(lift) * 3 // 10:]) == pytest.approx(light.mass * 9.81, rel=0.25)
+    assert np.mean(lift[-len(lift) * 3 // 10 :]) == pytest.approx(light.mass * 9.81, rel=0.25)

@@ -1,5 +1,6 @@
 """Bad input through `ipsph run`: exit 2, one line on stderr naming what, where, why and what to do,
 before any output is written (issue 6). Runs the CLI in-process (`cli.main`) for speed."""
+
 from __future__ import annotations
 
 import os
@@ -29,12 +30,13 @@ box = {{ min = [0, 0, 0], max = [0.8, 0.8, 0.8] }}
 [render]
 enabled = false
 """
-BOX_FLUID = 'box = { min = [0, 0, 0], max = [0.4, 0.4, 0.4] }'
+BOX_FLUID = "box = { min = [0, 0, 0], max = [0.4, 0.4, 0.4] }"
 
 
 @pytest.fixture(autouse=True)
 def _threads():
     import numba
+
     n = numba.get_num_threads()
     yield
     numba.set_num_threads(n)
@@ -154,6 +156,7 @@ def test_inverted_mesh_is_flipped_and_runs(tmp_path, capsys):
     assert code == 0, err
     # a 0.4 m cube at d = 0.08 m holds 5^3 lattice points (some overlap the walls: none here)
     import json
+
     info = json.loads((tmp_path / "out" / RUN_JSON).read_text())
     assert info["fluid_particles"] > 0
 
@@ -178,6 +181,7 @@ def test_render_size_guard_names_the_image_and_the_way_out(tmp_path, capsys, mon
     import collections
 
     import psutil
+
     mem = collections.namedtuple("mem", "available")
     monkeypatch.setattr(psutil, "virtual_memory", lambda: mem(1 << 30))  # a 1 GiB machine
     s = scene_file(tmp_path, TANK.format(fluid=BOX_FLUID).replace("enabled = false", "width = 8192\nheight = 8192"))

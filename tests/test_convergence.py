@@ -7,6 +7,7 @@ semi-implicit Euler step (v += dt g; x += dt v, or PF's inertial target s = x + 
 the same map), whose error at time T is g dt T / 2: first order. The measured order is log2 of
 the error ratio at dt and dt/2.
 """
+
 import math
 
 import pytest
@@ -15,8 +16,8 @@ from ipsph.scene import scene_from_dict
 from ipsph.simulation import Simulation, sample_scene
 
 G = 9.81
-T = 0.24        # s: a whole number of steps at every dt below
-V0 = 1.5        # m/s upwards
+T = 0.24  # s: a whole number of steps at every dt below
+V0 = 1.5  # m/s upwards
 DTS = (0.008, 0.004, 0.002)
 # The truncation error is the only error, so the order is 1 to round-off (1e-9 here); 0.05 still
 # tells it from a second-order integrator (2) or from a dt-independent error such as a stray
@@ -25,11 +26,14 @@ ORDER_TOL = 0.05
 
 
 def _surface_error(method: str, dt: float) -> float:
-    scene = scene_from_dict({
-        "simulation": {"method": method, "particle_radius": 0.025, "end_time": T},
-        "time_step": {"dt_min": dt, "dt_max": dt, "dt_initial": dt},
-        "fluid": [{"box": {"min": [0, 0, 0], "max": [0.3, 0.3, 0.3]}, "velocity": [0.0, V0, 0.0]}],
-    }, name="thrown-block")
+    scene = scene_from_dict(
+        {
+            "simulation": {"method": method, "particle_radius": 0.025, "end_time": T},
+            "time_step": {"dt_min": dt, "dt_max": dt, "dt_initial": dt},
+            "fluid": [{"box": {"min": [0, 0, 0], "max": [0.3, 0.3, 0.3]}, "velocity": [0.0, V0, 0.0]}],
+        },
+        name="thrown-block",
+    )
     sim = Simulation(scene, *sample_scene(scene)[:3])
     y0 = sim.positions[:, 1].max()
     sim.run(end_time=T, fps=25)

@@ -6,6 +6,7 @@ once by one fixture so they share the cores. A PTX compile of every kernel the r
 that the bodies compile as CUDA device functions for a real GPU (NVVM, from the `[cuda]` extra's
 CUDA wheels; no driver needed).
 """
+
 from __future__ import annotations
 
 import json
@@ -45,8 +46,9 @@ FREE_FALL_VX = 1e-5
 def _start(case: str) -> subprocess.Popen:
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(HERE.parent), os.environ.get("PYTHONPATH", "")]))
     env.pop("NUMBA_ENABLE_CUDASIM", None)  # each case sets what it needs
-    return subprocess.Popen([sys.executable, str(CASES), case], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, env=env)
+    return subprocess.Popen(
+        [sys.executable, str(CASES), case], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env
+    )
 
 
 # a one-line kernel compiled to PTX: NVVM and NVRTC both found (a system CUDA toolkit may bring
@@ -69,8 +71,23 @@ def results(tmp_path_factory):
     """{case: parsed JSON}; the cases (and the benchmark's smoke run) run concurrently."""
     bench_json = tmp_path_factory.mktemp("bench") / "bench.json"
     procs = {c: _start(c) for c in ("methods", "float32", "passes", "emitters", "moving_walls")}
-    procs["bench"] = _cli(["bench", "--backend", "cuda", "--scaling", "300", "--scaling-steps", "1", "--no-peer",
-                           "--json", str(bench_json)], {}, bench_json.parent, wait=False)
+    procs["bench"] = _cli(
+        [
+            "bench",
+            "--backend",
+            "cuda",
+            "--scaling",
+            "300",
+            "--scaling-steps",
+            "1",
+            "--no-peer",
+            "--json",
+            str(bench_json),
+        ],
+        {},
+        bench_json.parent,
+        wait=False,
+    )
     if _nvvm_available():
         procs["ptx"] = _start("ptx")
     out = {}
@@ -156,8 +173,17 @@ def test_device_neighbour_search_matches_the_oracle_and_the_cpu(results):
 def test_every_pass_and_reduction_matches_the_cpu(results):
     r = results["passes"]
     diffs = r["diffs"]
-    assert {"density.rho", "pair_cache", "viscosity", "pf_global", "apply_stiffness.cached",
-            "divergence_residual.kernel", "density_residual.cached", "mean", "speed_energy"} <= set(diffs)
+    assert {
+        "density.rho",
+        "pair_cache",
+        "viscosity",
+        "pf_global",
+        "apply_stiffness.cached",
+        "divergence_residual.kernel",
+        "density_residual.cached",
+        "mean",
+        "speed_energy",
+    } <= set(diffs)
     bad = {k: v for k, v in diffs.items() if not v <= FLOAT64_REL}
     assert not bad, bad
     assert r["max_exact"] and r["take_untake"]
@@ -172,9 +198,21 @@ def test_every_kernel_compiles_for_a_gpu(results):
     r = results["ptx"]
     assert not r["failed"], r["failed"]
     names = {name for _, name, _ in r["compiled"]}
-    assert {"density_factor_lambda", "xsph", "pf_global", "apply_stiffness", "divergence_residual",
-            "density_residual", "warm_stiffness", "_gather_fluid", "_gather_walls", "_place", "_partial_sums",
-            "_fold", "wall_rate"} <= names
+    assert {
+        "density_factor_lambda",
+        "xsph",
+        "pf_global",
+        "apply_stiffness",
+        "divergence_residual",
+        "density_residual",
+        "warm_stiffness",
+        "_gather_fluid",
+        "_gather_walls",
+        "_place",
+        "_partial_sums",
+        "_fold",
+        "wall_rate",
+    } <= names
     # the scratch block is thread-local memory: rows x stride x 8 bytes (density: 6 x (64 + 48) x 8)
     assert r["local_bytes"]["density_factor_lambda[64, 48]"] == 6 * 112 * 8
 
@@ -194,8 +232,14 @@ def test_bench_backend_cuda_scaling_smoke(results):
 def _cli(args, env_extra, cwd, wait=True):
     env = dict(os.environ, NUMBA_ENABLE_CUDASIM="1")
     env.update(env_extra)
-    p = subprocess.Popen([sys.executable, "-m", "ipsph", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                         text=True, env=env, cwd=cwd)
+    p = subprocess.Popen(
+        [sys.executable, "-m", "ipsph", *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+        cwd=cwd,
+    )
     return _finish(p) if wait else p
 
 
@@ -235,23 +279,62 @@ def test_ipsph_run_backend_cuda_end_to_end_and_resume(tmp_path):
     from ipsph.io import vtu
     from ipsph.io.pvd import PvdSeries
     from ipsph.io.stats import read_stats
+
     scene = tmp_path / "tiny.toml"
     scene.write_text(TINY)
     a, b = tmp_path / "A", tmp_path / "B"
-    run_a = _cli(["run", str(scene), "-o", str(a), "--backend", "cuda", "--end-time", "0.04", "--quiet"], {}, tmp_path,
-                 wait=False)
+    run_a = _cli(
+        ["run", str(scene), "-o", str(a), "--backend", "cuda", "--end-time", "0.04", "--quiet"],
+        {},
+        tmp_path,
+        wait=False,
+    )
     c = tmp_path / "C"  # a CPU run's checkpoint, continued on the GPU
-    run_c = _cli(["run", str(scene), "-o", str(c), "--end-time", "0.02", "--quiet", "--no-render"], {}, tmp_path,
-                 wait=False)
-    run_b = _cli(["run", str(scene), "-o", str(b), "--backend", "cuda", "--end-time", "0.02", "--quiet",
-                  "--no-render"], {}, tmp_path)
+    run_c = _cli(
+        ["run", str(scene), "-o", str(c), "--end-time", "0.02", "--quiet", "--no-render"], {}, tmp_path, wait=False
+    )
+    run_b = _cli(
+        ["run", str(scene), "-o", str(b), "--backend", "cuda", "--end-time", "0.02", "--quiet", "--no-render"],
+        {},
+        tmp_path,
+    )
     assert run_b.returncode == 0, run_b.stderr
-    resumed = _cli(["run", str(scene), "-o", str(b), "--backend", "cuda", "--end-time", "0.04", "--quiet",
-                    "--no-render", "--resume"], {}, tmp_path)
+    resumed = _cli(
+        [
+            "run",
+            str(scene),
+            "-o",
+            str(b),
+            "--backend",
+            "cuda",
+            "--end-time",
+            "0.04",
+            "--quiet",
+            "--no-render",
+            "--resume",
+        ],
+        {},
+        tmp_path,
+    )
     assert resumed.returncode == 0, resumed.stderr
     assert _finish(run_c).returncode == 0, run_c.stderr
-    moved = _cli(["run", str(scene), "-o", str(c), "--backend", "cuda", "--end-time", "0.04", "--quiet",
-                  "--no-render", "--resume"], {}, tmp_path)
+    moved = _cli(
+        [
+            "run",
+            str(scene),
+            "-o",
+            str(c),
+            "--backend",
+            "cuda",
+            "--end-time",
+            "0.04",
+            "--quiet",
+            "--no-render",
+            "--resume",
+        ],
+        {},
+        tmp_path,
+    )
     assert moved.returncode == 0, moved.stderr
     assert _finish(run_a).returncode == 0, run_a.stderr
     info = json.loads((a / "run.json").read_text())
@@ -261,14 +344,17 @@ def test_ipsph_run_backend_cuda_end_to_end_and_resume(tmp_path):
     assert [t for t, _ in frames_a] == pytest.approx([0.0, 0.02, 0.04])
     xa, fa, _ = vtu.read_particles(a / frames_a[-1][1])
     xb, fb, _ = vtu.read_particles(b / frames_b[-1][1])
-    assert np.array_equal(xa, xb) and np.array_equal(fa["velocity"], fb["velocity"]), "the resume did not continue exactly"
+    assert np.array_equal(xa, xb) and np.array_equal(fa["velocity"], fb["velocity"]), (
+        "the resume did not continue exactly"
+    )
     assert fa["density"].max() / 1000.0 - 1 < 0.05, "compressed by more than 5 %"
     frames_c = PvdSeries.load(c / "run.pvd").frames
     xc, fc, _ = vtu.read_particles(c / frames_c[-1][1])
     by_a, by_c = np.argsort(fa["id"]), np.argsort(fc["id"])
     # the frames store float32 points: the runs agree to 1e-14, so to a few float32 ulps here
-    assert np.abs(xa[by_a] - xc[by_c]).max() <= 4 * np.finfo(np.float32).eps * np.abs(xa).max(), \
+    assert np.abs(xa[by_a] - xc[by_c]).max() <= 4 * np.finfo(np.float32).eps * np.abs(xa).max(), (
         "CPU -> GPU resume drifted"
+    )
     assert json.loads((c / "run.json").read_text())["backend"] == "cuda"
     stats = read_stats(a / "stats.csv")
     assert len(stats["step"]) == info["steps"] and np.all(stats["pd_passes"] >= 1)

@@ -1,4 +1,5 @@
 """The default dam break (issue 3): containment, no particle lost, IPSPH vs PF, determinism."""
+
 import numpy as np
 import pytest
 
@@ -10,6 +11,7 @@ def _run(method, end_time, threads=None):
     scene = load_scene(default_scene_path(), [f"simulation.method={method}", f"simulation.end_time={end_time}"])
     if threads is not None:
         import numba
+
         numba.set_num_threads(threads)
     sim = Simulation(scene, *sample_scene(scene)[:3])
     (lo, hi) = (np.array(scene.boundaries[0].box_min), np.array(scene.boundaries[0].box_max))
@@ -19,6 +21,7 @@ def _run(method, end_time, threads=None):
         rec["err"].append(s.density_error_mean)
         x = sim.positions
         rec["outside"] = max(rec["outside"], int(np.count_nonzero(np.any((x < lo) | (x > hi), axis=1))))
+
     sim.run(on_step=on_step)
     rec["sim"] = sim
     return rec
@@ -57,6 +60,7 @@ def test_same_thread_count_gives_identical_results(method):
 def test_one_and_two_threads_agree_bitwise():
     # passes are gathers and loop criteria use serial sums, so the thread count cannot matter
     import numba
+
     before = numba.get_num_threads()
     try:
         a = _run("ipsph", 0.2, threads=1)["sim"]

@@ -6,6 +6,7 @@ Blocks of one page run in order in one namespace (a page reads as one session). 
 snippets read `out/`, so a tiny run is made there first (--no-render, r = 0.04 m, 0.1 s: three
 frames at t = 0, 0.04, 0.08, which the snippets name).
 """
+
 from __future__ import annotations
 
 import re
@@ -45,8 +46,19 @@ def test_python_api_snippets_run(tmp_path, monkeypatch, capsys):
 @pytest.fixture(scope="module")
 def tiny_run(tmp_path_factory):
     folder = tmp_path_factory.mktemp("docs_run")
-    code = cli.main(["run", "--set", "simulation.particle_radius=0.04", "--end-time", "0.1",
-                     "--no-render", "--quiet", "-o", str(folder / "out")])
+    code = cli.main(
+        [
+            "run",
+            "--set",
+            "simulation.particle_radius=0.04",
+            "--end-time",
+            "0.1",
+            "--no-render",
+            "--quiet",
+            "-o",
+            str(folder / "out"),
+        ]
+    )
     assert code == 0
     return folder
 
@@ -68,7 +80,8 @@ def test_stats_columns_documented_exactly():
     assert len(documented) == len(set(documented)), "a stats.csv column is documented twice"
     assert set(documented) == set(STATS_COLUMNS), (
         f"only in the docs: {sorted(set(documented) - set(STATS_COLUMNS))}; "
-        f"only in STATS_COLUMNS: {sorted(set(STATS_COLUMNS) - set(documented))}")
+        f"only in STATS_COLUMNS: {sorted(set(STATS_COLUMNS) - set(documented))}"
+    )
 
 
 def test_stats_columns_in_writer_order():

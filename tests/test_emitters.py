@@ -2,6 +2,7 @@
 ids, varying particle counts through the output, checkpoints, the importer, bad input.
 
 Scenes are tiny (tens to a few hundred particles at r = 0.02-0.05 m) and short (< 0.5 s)."""
+
 from __future__ import annotations
 
 import json
@@ -20,16 +21,28 @@ from ipsph.simulation import Simulation
 DATA = Path(__file__).resolve().parent / "data" / "emitters"
 R = 0.02
 D = 2 * R
-M = 1000.0 * D ** 3   # every particle's mass, rho0 (2r)^3
+M = 1000.0 * D**3  # every particle's mass, rho0 (2r)^3
 
 
 def jet(method="ipsph", gravity=(0.0, 0.0, 0.0), sink=True, **emitter):
     """A box nozzle (5 x 3 particles) in a large closed tank firing along +x, a sink downstream."""
-    e = {"name": "jet", "position": [-0.5, 0.0, 0.0], "direction": [1, 0, 0], "width": 0.2, "height": 0.12,
-         "velocity": 1.0, "start_time": 0.1, "end_time": 0.3, **emitter}
-    d = {"simulation": {"method": method, "particle_radius": R, "end_time": 0.8, "gravity": list(gravity)},
-         "boundary": [{"name": "tank", "box": {"min": [-1, -1, -1], "max": [1, 1, 1]}}],
-         "emitter": [e], "render": {"enabled": False}}
+    e = {
+        "name": "jet",
+        "position": [-0.5, 0.0, 0.0],
+        "direction": [1, 0, 0],
+        "width": 0.2,
+        "height": 0.12,
+        "velocity": 1.0,
+        "start_time": 0.1,
+        "end_time": 0.3,
+        **emitter,
+    }
+    d = {
+        "simulation": {"method": method, "particle_radius": R, "end_time": 0.8, "gravity": list(gravity)},
+        "boundary": [{"name": "tank", "box": {"min": [-1, -1, -1], "max": [1, 1, 1]}}],
+        "emitter": [e],
+        "render": {"enabled": False},
+    }
     if sink:
         d["sink"] = [{"name": "drain", "min": [-0.1, -1, -1], "max": [1, 1, 1]}]
     return scene_from_dict(d)
@@ -44,18 +57,18 @@ def test_emitted_mass_is_rate_times_time_and_leaves_at_the_requested_velocity():
     scene = jet(sink=False)
     nz = nozzle(scene.emitters[0], R, scene.end_time)
     assert nz.per_layer == 15
-    rate = 1000.0 * 15 * D ** 2 * 1.0            # kg/s
+    rate = 1000.0 * 15 * D**2 * 1.0  # kg/s
     layer = 15 * M
     sim = Simulation.from_scene(scene)
     assert sim.n_fluid == 0 and sim.state.capacity == nz.layers * 15
     checked = 0
     while sim.time < 0.45:
-        s = sim.step()
+        sim.step()
         mass = float(sim.masses.sum())
         expected = rate * max(0.0, min(sim.time, 0.3) - 0.1)
         assert abs(mass - expected) <= layer * (1 + 1e-9), (sim.time, mass, expected)
         x, v = sim.positions, sim.velocities
-        past_guide = x[:, 0] > -0.5 + 4 * R + D       # beyond the guide region (H = 4r ahead)
+        past_guide = x[:, 0] > -0.5 + 4 * R + D  # beyond the guide region (H = 4r ahead)
         if past_guide.sum() >= 15:
             mean = v[past_guide].mean(axis=0)
             assert abs(mean[0] - 1.0) <= 0.01 and np.abs(mean[1:]).max() <= 0.01, (sim.time, mean)
@@ -83,7 +96,7 @@ def test_a_sink_removes_what_enters_it_and_ids_are_never_reused():
         now = set(ids.tolist())
         gone |= seen - now
         seen |= now
-        assert not np.any(sim.positions[:, 0] >= -0.1)         # nothing inside the sink after a step
+        assert not np.any(sim.positions[:, 0] >= -0.1)  # nothing inside the sink after a step
     assert removed == len(gone) == sim.flow.removed > 0
     assert sim.flow.emitted == sim.n_fluid + removed == 90
     assert seen == set(range(90))
@@ -129,6 +142,7 @@ def test_run_folder_frames_carry_varying_counts_and_ids(tmp_path):
     import pyvista as pv
 
     from ipsph.io.stats import read_stats
+
     scene = jet(end_time=0.6)
     out = tmp_path / "out"
     assert runner.run(scene, runner.RunOptions(out_dir=out, render=False, progress=False)) == 0
@@ -147,7 +161,7 @@ def test_run_folder_frames_carry_varying_counts_and_ids(tmp_path):
         if frame.n_points:
             ids = np.asarray(frame.point_data["id"])
             assert len(np.unique(ids)) == len(ids)
-    assert counts[0] == 0 and max(counts) > counts[-1] > 0     # filled, then drained
+    assert counts[0] == 0 and max(counts) > counts[-1] > 0  # filled, then drained
     assert sum(stats["emitted"]) == run["flow"]["emitted"] and sum(stats["removed"]) == run["flow"]["removed"]
 
 
@@ -187,17 +201,20 @@ name = "tap"
 GOOD = 'position = [0.5, 0.8, 0.5]\ndirection = [0, -1, 0]\nshape = "circle"\nradius = 0.1\nvelocity = 1.0'
 
 
-@pytest.mark.parametrize("emitter, key", [
-    ('position = [2.5, 0.8, 0.5]\ndirection = [0, -1, 0]\nshape = "circle"\nradius = 0.1', "emitter[0].position"),
-    (GOOD.replace("velocity = 1.0", "velocity = 0.0"), "emitter[0].velocity"),
-    (GOOD.replace("velocity = 1.0", "velocity = -2.0"), "emitter[0].velocity"),
-    (GOOD.replace("radius = 0.1", "radius = -0.1"), "emitter[0].radius"),
-    ('position = [0.5, 0.8, 0.5]\nwidth = 0.0\nheight = 0.2', "emitter[0].width"),
-    ('position = [0.5, 0.8, 0.5]\nwidth = 0.2', "emitter[0].height"),
-    (GOOD + "\nstart_time = 0.1\nend_time = 0.05", "emitter[0].end_time"),
-    (GOOD + "\ndirection = [0, 0, 0]", None),  # a duplicate key: TOML's own error
-    (GOOD.replace("direction = [0, -1, 0]", "direction = [0, 0, 0]"), "emitter[0].direction"),
-])
+@pytest.mark.parametrize(
+    "emitter, key",
+    [
+        ('position = [2.5, 0.8, 0.5]\ndirection = [0, -1, 0]\nshape = "circle"\nradius = 0.1', "emitter[0].position"),
+        (GOOD.replace("velocity = 1.0", "velocity = 0.0"), "emitter[0].velocity"),
+        (GOOD.replace("velocity = 1.0", "velocity = -2.0"), "emitter[0].velocity"),
+        (GOOD.replace("radius = 0.1", "radius = -0.1"), "emitter[0].radius"),
+        ("position = [0.5, 0.8, 0.5]\nwidth = 0.0\nheight = 0.2", "emitter[0].width"),
+        ("position = [0.5, 0.8, 0.5]\nwidth = 0.2", "emitter[0].height"),
+        (GOOD + "\nstart_time = 0.1\nend_time = 0.05", "emitter[0].end_time"),
+        (GOOD + "\ndirection = [0, 0, 0]", None),  # a duplicate key: TOML's own error
+        (GOOD.replace("direction = [0, -1, 0]", "direction = [0, 0, 0]"), "emitter[0].direction"),
+    ],
+)
 def test_bad_emitters_exit_2_naming_the_key_and_create_nothing(tmp_path, capsys, emitter, key):
     scene = tmp_path / "scene.toml"
     scene.write_text(textwrap.dedent(TANK.format(emitter=emitter)))
@@ -227,9 +244,20 @@ def test_resume_with_a_later_end_time_plans_the_extra_emission(tmp_path, capsys)
     re-planned from what the checkpoint holds and what is still due), bit-identically to a run
     straight to T2; a plan over --max-particles is refused (exit 2) before anything is touched."""
     from ipsph.io import vtu
+
     tap = Path(__file__).resolve().parents[1] / "pipelines" / "tap.toml"
-    base = ["run", str(tap), "--quiet", "--no-render", "--threads", "1", "--set", "simulation.particle_radius=0.04",
-            "--set", "output.checkpoint_interval=0.12"]
+    base = [
+        "run",
+        str(tap),
+        "--quiet",
+        "--no-render",
+        "--threads",
+        "1",
+        "--set",
+        "simulation.particle_radius=0.04",
+        "--set",
+        "output.checkpoint_interval=0.12",
+    ]
     a, b = tmp_path / "a", tmp_path / "b"
     assert cli.main([*base, "-o", str(a), "--end-time", "0.48"]) == 0
     assert cli.main([*base, "-o", str(b), "--end-time", "0.24"]) == 0
@@ -247,8 +275,9 @@ def test_resume_with_a_later_end_time_plans_the_extra_emission(tmp_path, capsys)
 def test_a_nozzle_against_a_wall_is_noted():
     """A nozzle whose first layer would sit on a wall's particles gets a note; the tap does not."""
     from ipsph.simulation import sample_scene
+
     tap = load_scene(Path(__file__).resolve().parents[1] / "pipelines" / "tap.toml")
     assert not [n for n in sample_scene(tap)[3] if "emitter" in n]
-    scene = jet(position=[-0.99, 0.0, 0.0])   # 1 cm from the tank's wall at x = -1
+    scene = jet(position=[-0.99, 0.0, 0.0])  # 1 cm from the tank's wall at x = -1
     notes = [n for n in sample_scene(scene)[3] if "emitter[0] 'jet'" in n]
     assert len(notes) == 1 and "closer than 2r" in notes[0]

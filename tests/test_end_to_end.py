@@ -1,4 +1,5 @@
 """`ipsph run` as a user runs it: a subprocess writing a ParaView-ready folder (issue 2)."""
+
 import subprocess
 import sys
 from pathlib import Path
@@ -15,8 +16,9 @@ FIELDS = {"velocity": 3, "density": 1, "pressure": 1, "mass": 1, "id": 1}
 
 
 def ipsph(*args, cwd=None, timeout=600):
-    return subprocess.run([sys.executable, "-m", "ipsph", *map(str, args)], cwd=cwd, capture_output=True,
-                          text=True, timeout=timeout)
+    return subprocess.run(
+        [sys.executable, "-m", "ipsph", *map(str, args)], cwd=cwd, capture_output=True, text=True, timeout=timeout
+    )
 
 
 @pytest.fixture(scope="module")
@@ -29,6 +31,7 @@ def default_run(tmp_path_factory):
 
 def test_default_scene_writes_a_readable_series(default_run):
     import pyvista as pv
+
     out = default_run
     reader = pv.get_reader(str(out / "run.pvd"))
     times = reader.time_values
@@ -41,7 +44,7 @@ def test_default_scene_writes_a_readable_series(default_run):
     run = read_run_json(out / "run.json")
     assert run["completed"] and run["status"] == "completed"
     assert run["wall_fit"] == {}  # simulation.fit_wall_volumes is off by default (method.md section 1)
-    assert run["settle"] == {}    # a dam break's column is never settled (simulation.settle = auto)
+    assert run["settle"] == {}  # a dam break's column is never settled (simulation.settle = auto)
     n = run["fluid_particles"]
     for f in sorted((out / "frames").glob("*.vtu")):
         m = meshio.read(f)
@@ -81,6 +84,7 @@ def test_stock_splishsplash_scenes_run_unchanged(tmp_path, scene, count):
 
 def test_renders_during_a_run(tmp_path):
     from ipsph.render import gl_available
+
     ok, why = gl_available()
     if not ok:
         pytest.skip(f"no offscreen GL here: {why}")
@@ -89,6 +93,7 @@ def test_renders_during_a_run(tmp_path):
     pngs = sorted((tmp_path / "out" / "renders").glob("*.png"))
     assert len(pngs) == 3
     import imageio.v3 as iio
+
     img = iio.imread(pngs[-1])
     assert img.shape[:2] == (720, 1280) and img.std() > 5
 
@@ -108,14 +113,19 @@ def test_inverted_mesh_is_flipped_and_the_user_is_told(tmp_path):
 
     from ipsph.scene import scene_from_dict
     from ipsph.simulation import sample_scene
+
     box = pv.Box(bounds=(0.1, 0.5, 0.1, 0.5, 0.1, 0.5)).triangulate()
     faces = box.faces.reshape(-1, 4).copy()
     faces[:, [2, 3]] = faces[:, [3, 2]]  # every triangle wound the wrong way: normals point inward
     pv.PolyData(box.points, faces.ravel()).save(tmp_path / "inverted.stl")
-    scene = scene_from_dict({"simulation": {"particle_radius": 0.02},
-                             "fluid": [{"name": "blob", "mesh": str(tmp_path / "inverted.stl")}],
-                             "boundary": [{"role": "container", "box": {"min": [0, 0, 0], "max": [0.6, 0.6, 0.6]}}]},
-                            name="inverted")
+    scene = scene_from_dict(
+        {
+            "simulation": {"particle_radius": 0.02},
+            "fluid": [{"name": "blob", "mesh": str(tmp_path / "inverted.stl")}],
+            "boundary": [{"role": "container", "box": {"min": [0, 0, 0], "max": [0.6, 0.6, 0.6]}}],
+        },
+        name="inverted",
+    )
     fluid, _, _, notes = sample_scene(scene)
-    assert len(fluid) == 10 ** 3  # the 0.4 m cube at spacing 0.04 m: the flipped mesh is filled normally
+    assert len(fluid) == 10**3  # the 0.4 m cube at spacing 0.04 m: the flipped mesh is filled normally
     assert any("blob" in n and "flipped" in n for n in notes)

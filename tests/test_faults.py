@@ -1,6 +1,7 @@
 """Faults during a run (issue 6): numerical failure (exit 3), solver caps, disk full (exit 4),
 SIGINT/SIGTERM (exit 130 with a final frame), SIGKILL (the .pvd lists only complete frames),
 and determinism. Signals run `python -m ipsph run` as a subprocess; the rest runs in-process."""
+
 from __future__ import annotations
 
 import json
@@ -43,6 +44,7 @@ def listed_frames(out: Path, killed: bool = False) -> list[tuple[float, str]]:
     """The .pvd's frames, each checked complete: it exists, VTK and pyvista read it, its time matches.
     Only a killed run may leave temporary files (unreferenced) behind."""
     import pyvista as pv
+
     series = PvdSeries.load(out / RUN_PVD)
     for t, f in series.frames:
         x, fields, tv = vtu.read_particles(out / f)
@@ -75,8 +77,9 @@ def test_nan_stops_within_one_step_naming_particle():
 def test_escape_exits_3_and_keeps_frames(tmp_path, capsys):
     out = tmp_path / "out"
     # a fixed 50 ms step (12 x the CFL step) blows the dam break apart within 1 s
-    code, err = run_cli(capsys, out, "--end-time", "2", "--set", "time_step.dt_min=0.05",
-                        "--set", "time_step.dt_max=0.05")
+    code, err = run_cli(
+        capsys, out, "--end-time", "2", "--set", "time_step.dt_min=0.05", "--set", "time_step.dt_max=0.05"
+    )
     assert code == 3, err
     line = error_line(err)
     assert re.search(r"at step \d+, t = [\d.]+ s: particle id \d+ (left the domain|non-finite)", line), line
@@ -92,8 +95,16 @@ def test_escape_exits_3_and_keeps_frames(tmp_path, capsys):
 def test_solver_caps_are_counted_and_reported(tmp_path, capsys):
     out = tmp_path / "out"
     # one divergence iteration cannot bring the divergence error of the falling column to 0.001 %
-    code, err = run_cli(capsys, out, "--end-time", "0.12", "--set", "solver.divergence.max_iterations=1",
-                        "--set", "solver.divergence.error_pct=0.001")
+    code, err = run_cli(
+        capsys,
+        out,
+        "--end-time",
+        "0.12",
+        "--set",
+        "solver.divergence.max_iterations=1",
+        "--set",
+        "solver.divergence.error_pct=0.001",
+    )
     assert code == 0, err
     info = json.loads((out / RUN_JSON).read_text())
     per_step = read_stats(out / STATS_CSV)["solver_maxed"]
@@ -105,6 +116,7 @@ def test_solver_caps_are_counted_and_reported(tmp_path, capsys):
 def full_disk_on_third_frame(monkeypatch):
     """Make the third fluid frame's VTK writer fail as on a full disk (half a file, OutOfDiskSpaceError)."""
     from vtkmodules.vtkCommonMisc import vtkErrorCode
+
     real_make = vtu._make_writer
 
     class FullDisk:
@@ -128,6 +140,7 @@ def full_disk_on_third_frame(monkeypatch):
         # the third fluid frame hits the full disk; boundary.vtu and frames 0, 1 are written
         make.calls += kind == "vtu"
         return FullDisk(writer) if make.calls == 4 else writer
+
     make.calls = 0
     monkeypatch.setattr(vtu, "_make_writer", make)
 
@@ -154,8 +167,23 @@ def test_disk_full_message_names_the_reason(tmp_path, capsys, monkeypatch):
 
 # -- signals -------------------------------------------------------------------------------------
 def start_run(out: Path, *extra) -> subprocess.Popen:
-    cmd = [sys.executable, "-m", "ipsph", "run", "-o", str(out), "--quiet", "--no-render", "--threads", "1",
-           "--set", "simulation.particle_radius=0.03", "--end-time", "3", *extra]
+    cmd = [
+        sys.executable,
+        "-m",
+        "ipsph",
+        "run",
+        "-o",
+        str(out),
+        "--quiet",
+        "--no-render",
+        "--threads",
+        "1",
+        "--set",
+        "simulation.particle_radius=0.03",
+        "--end-time",
+        "3",
+        *extra,
+    ]
     env = {**os.environ, "PYTHONPATH": str(REPO)}
     return subprocess.Popen(cmd, cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
@@ -197,9 +225,24 @@ def test_sigkill_leaves_only_complete_frames_and_resumes(tmp_path, capsys):
     assert json.loads((out / RUN_JSON).read_text())["status"] == "running"  # it never got to say otherwise
     # the last checkpoint (one per frame here) carries on; stale temporary files are swept
     end = frames[-1][0] + 0.08
-    code = cli.main(["run", "-o", str(out), "--quiet", "--no-render", "--threads", "1", "--resume",
-                     "--set", "simulation.particle_radius=0.03", "--set", "output.checkpoint_interval=0.04",
-                     "--end-time", f"{end:.2f}"])
+    code = cli.main(
+        [
+            "run",
+            "-o",
+            str(out),
+            "--quiet",
+            "--no-render",
+            "--threads",
+            "1",
+            "--resume",
+            "--set",
+            "simulation.particle_radius=0.03",
+            "--set",
+            "output.checkpoint_interval=0.04",
+            "--end-time",
+            f"{end:.2f}",
+        ]
+    )
     assert code == 0, capsys.readouterr().err
     assert listed_frames(out)[-1][0] == pytest.approx(end)
 
@@ -211,10 +254,8 @@ def test_same_input_same_threads_identical_arrays():
         for _ in range(15):
             sim.step()
         return sim
+
     a, b = run(), run()
     assert a.time == b.time
     for name in ("positions", "velocities", "densities", "pressures", "ids"):
         assert np.array_equal(getattr(a, name), getattr(b, name)), name
-
-
-

@@ -1,4 +1,5 @@
 """Output folder writers: VTU/PVD/stats/run.json round trips and atomic, failure-safe writes."""
+
 from __future__ import annotations
 
 import os
@@ -116,8 +117,9 @@ def test_pvd_series_read_by_pyvista_with_two_parts(tmp_path):
 
     rng = np.random.default_rng(2)
     (tmp_path / "frames").mkdir()
-    write_particles(tmp_path / "boundary.vtu", rng.random((10, 3)),
-                    {"volume": np.full(10, 1e-6), "id": np.arange(10)}, 0.0)
+    write_particles(
+        tmp_path / "boundary.vtu", rng.random((10, 3)), {"volume": np.full(10, 1e-6), "id": np.arange(10)}, 0.0
+    )
     series = PvdSeries(tmp_path / "run.pvd", "boundary.vtu")
     times = [0.0, 0.04, 0.08]
     for i, t in enumerate(times):
@@ -158,8 +160,7 @@ def test_pvd_parts_are_named_and_declared_once(tmp_path):
     for i, t in enumerate((0.0, 0.04)):
         s.add(t, frame_file(i), surface=f"surfaces/surface_{i:06d}.vtp")
     text = (tmp_path / "run.pvd").read_text()
-    assert ('<DataSet timestep="0.04" group="" part="1" name="surface" file="surfaces/surface_000001.vtp"/>'
-            in text)
+    assert '<DataSet timestep="0.04" group="" part="1" name="surface" file="surfaces/surface_000001.vtp"/>' in text
     assert text.count('name="boundary_surface"') == 2 and text.count('part="0" name="fluid"') == 2
     assert (tmp_path / "surface.pvd").read_text().count('name="surface"') == 2
     assert "boundary" not in (tmp_path / "fluid.pvd").read_text()
@@ -205,8 +206,15 @@ def test_atomic_path_passes_keyboard_interrupt_and_cleans_up(tmp_path):
 
 def _row(step):
     row = {c: 0.0 for c in STATS_COLUMNS}
-    row.update(step=step, time=step * 0.001, dt=0.001, particles=1000, max_speed=0.1 * step,
-               dt_clamped=step % 2 == 0, pd_passes=3)
+    row.update(
+        step=step,
+        time=step * 0.001,
+        dt=0.001,
+        particles=1000,
+        max_speed=0.1 * step,
+        dt_clamped=step % 2 == 0,
+        pd_passes=3,
+    )
     return row
 
 
@@ -254,10 +262,18 @@ def test_run_json_round_trip(tmp_path):
     from ipsph.model import RenderConfig, Scene
 
     scene = Scene(name="dam")
-    info = {"scene": scene, "method": scene.method, "status": "running", "completed": False,
-            "exit_code": None, "particle_radius": np.float64(0.025), "fluid_particles": np.int64(1000),
-            "domain_bounds": np.array([0, 1, 0, 1, 0, 1.0]), "timings_ms": {"xsph": float("nan")},
-            "render": {**asdict(RenderConfig()), "speed_range": (0.0, 3.5)}}
+    info = {
+        "scene": scene,
+        "method": scene.method,
+        "status": "running",
+        "completed": False,
+        "exit_code": None,
+        "particle_radius": np.float64(0.025),
+        "fluid_particles": np.int64(1000),
+        "domain_bounds": np.array([0, 1, 0, 1, 0, 1.0]),
+        "timings_ms": {"xsph": float("nan")},
+        "render": {**asdict(RenderConfig()), "speed_range": (0.0, 3.5)},
+    }
     write_run_json(tmp_path / "run.json", info)
     back = read_run_json(tmp_path / "run.json")
     assert back["scene"]["name"] == "dam" and back["method"] == "ipsph"
@@ -266,7 +282,6 @@ def test_run_json_round_trip(tmp_path):
     assert back["timings_ms"]["xsph"] is None  # NaN is not JSON
     assert back["render"]["speed_range"] == [0.0, 3.5]
     assert back["versions"]["numpy"] == np.__version__
-    assert set(versions()) >= {"python", "ipsph", "numpy", "numba", "vtk", "pyvista", "meshio",
-                               "platform", "cpu_count"}
+    assert set(versions()) >= {"python", "ipsph", "numpy", "numba", "vtk", "pyvista", "meshio", "platform", "cpu_count"}
     with pytest.raises(OutputError):
         read_run_json(tmp_path / "missing.json")

@@ -1,5 +1,6 @@
 """The cold-start compile helper (ipsph/jit_warm.py): its signature list matches what the methods
 compile, and the helper really fills the Numba cache so that the run loads instead of compiling."""
+
 from __future__ import annotations
 
 import json
@@ -36,8 +37,9 @@ def test_the_signature_list_holds_every_kernel_a_method_runs(method):
     """Fails when a kernel is added or its argument types change without `python -m ipsph.jit_warm
     --write` (the helper would then compile the wrong thing and the cold start would not gain)."""
     env = dict(os.environ, IPSPH_NO_JIT_HELPER="1")
-    out = subprocess.run([sys.executable, "-c", _USED, method], capture_output=True, text=True, env=env,
-                         cwd=REPO, timeout=600)
+    out = subprocess.run(
+        [sys.executable, "-c", _USED, method], capture_output=True, text=True, env=env, cwd=REPO, timeout=600
+    )
     assert out.returncode == 0, out.stderr
     used = {(m, q, tuple(s)) for m, q, s in json.loads(out.stdout.strip().splitlines()[-1])}
     listed = {(m, q, tuple(s)) for m, q, s in jit_warm.load_signatures()[method]}
@@ -47,6 +49,7 @@ def test_the_signature_list_holds_every_kernel_a_method_runs(method):
 
 def test_signatures_parse_back_to_numba_types():
     from numba.core.types import Type
+
     for entries in jit_warm.load_signatures().values():
         for _, _, sig in entries:
             types = jit_warm._parse(sig)
@@ -58,11 +61,17 @@ def test_the_helper_fills_an_empty_cache_so_the_run_loads_instead_of_compiling(t
     (a small one) into the (empty) cache; a fresh process then finds it there (no compile event)."""
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
     last = jit_warm.load_signatures()["pf"][-1:]
-    probe = ("import sys; from ipsph import jit_warm; print(jit_warm.missing_from_cache('pf'))")
+    probe = "import sys; from ipsph import jit_warm; print(jit_warm.missing_from_cache('pf'))"
     before = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, env=env, cwd=REPO)
     assert int(before.stdout) == len(jit_warm.load_signatures()["pf"])  # empty: everything missing
-    res = subprocess.run([sys.executable, "-m", "ipsph.jit_warm", "pf", "1"], capture_output=True, text=True,
-                         env=env, cwd=REPO, timeout=600)
+    res = subprocess.run(
+        [sys.executable, "-m", "ipsph.jit_warm", "pf", "1"],
+        capture_output=True,
+        text=True,
+        env=env,
+        cwd=REPO,
+        timeout=600,
+    )
     assert res.returncode == 0, res.stderr
     after = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, env=env, cwd=REPO)
     assert int(after.stdout) == len(jit_warm.load_signatures()["pf"]) - 1

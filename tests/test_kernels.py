@@ -1,4 +1,5 @@
 """Cubic spline kernel (method.md section 1): moments, gradient, support, symmetry."""
+
 import math
 
 import numpy as np
@@ -21,9 +22,9 @@ def _g(r, h):
 def _w_reference(r, h):
     """The piecewise formula exactly as method.md writes it."""
     q = r / h
-    c = 8.0 / (math.pi * h ** 3)
+    c = 8.0 / (math.pi * h**3)
     if q <= 0.5:
-        return c * (6 * q ** 3 - 6 * q ** 2 + 1)
+        return c * (6 * q**3 - 6 * q**2 + 1)
     if q <= 1.0:
         return 2 * c * (1 - q) ** 3
     return 0.0
@@ -31,7 +32,7 @@ def _w_reference(r, h):
 
 def _grad_reference(r, h):
     q = r / h
-    cp = 48.0 / (math.pi * h ** 3)
+    cp = 48.0 / (math.pi * h**3)
     if r < 1e-9 or q > 1.0:
         return 0.0
     if q <= 0.5:
@@ -70,7 +71,7 @@ GRADIENT_MOMENT_TOL = 0.05
 
 
 def _partition(x, pts, d):
-    return sum(_w(ri, H) for ri in np.linalg.norm(x - pts, axis=1)) * d ** 3
+    return sum(_w(ri, H) for ri in np.linalg.norm(x - pts, axis=1)) * d**3
 
 
 @pytest.mark.parametrize("offset", [(0, 0, 0), (0.013, -0.021, 0.007)])
@@ -86,7 +87,7 @@ def test_partition_of_unity_and_gradient_moment(offset):
     r = np.linalg.norm(rel, axis=1)
     assert _partition(x, pts, d) == pytest.approx(1.0, abs=0.01)
     g = np.array([_g(ri, H) for ri in r])
-    grad = (g[:, None] * rel).sum(axis=0) * d ** 3
+    grad = (g[:, None] * rel).sum(axis=0) * d**3
     if offset == (0, 0, 0):
         assert np.linalg.norm(grad) < 1e-9
     assert np.linalg.norm(grad) * H < GRADIENT_MOMENT_TOL
@@ -126,13 +127,14 @@ def test_pair_forces_of_the_stiffness_pass_cancel():
     that is not odd in x_ij leaves O(1) of it."""
     from ipsph.backends.cpu_passes import NO_PAIR_CACHE, apply_stiffness
     from ipsph.neighbours import brute_force_neighbours
+
     rng = np.random.default_rng(4)
     x = rng.uniform(0, 0.4, (400, 3))
     lists = brute_force_neighbours(x, x, H, True)
     cf = np.array([len(a) for a in lists], dtype=np.int32)
     nf = np.zeros((len(x), cf.max()), dtype=np.int32)
     for i, a in enumerate(lists):
-        nf[i, :len(a)] = a
+        nf[i, : len(a)] = a
     k = rng.uniform(0.0, 1.0, len(x))
     v, k_total = np.zeros((len(x), 3)), np.zeros(len(x))
     apply_stiffness(x, 1.0, np.zeros((len(x), 3)), nf, cf, NO_PAIR_CACHE, H, k, 1e-3, v, k_total)

@@ -1,4 +1,5 @@
 """Mesh loading, checks, transforms and the inside test (ipsph.meshes)."""
+
 from __future__ import annotations
 
 import math
@@ -79,8 +80,7 @@ def test_unreadable_missing_unknown_and_empty_files_raise_mesherror(tmp_path):
 
 # ----------------------------------------------------------------------------- transforms
 def test_transform_scale_rotate_translate_on_a_box():
-    t = model.Transform(translate=(1.0, 2.0, 3.0), scale=(2.0, 3.0, 4.0), rotate_axis=(0.0, 1.0, 0.0),
-                        rotate_deg=90.0)
+    t = model.Transform(translate=(1.0, 2.0, 3.0), scale=(2.0, 3.0, 4.0), rotate_axis=(0.0, 1.0, 0.0), rotate_deg=90.0)
     mesh = meshes.transform_mesh(unit_box(), t)
     # scaled box [0,2]x[0,3]x[0,4]; +90° about y maps (x, z) -> (z, -x); then translate
     np.testing.assert_allclose(mesh.bounds, (1.0, 5.0, 2.0, 5.0, 1.0, 3.0), atol=EXACT)
@@ -144,8 +144,7 @@ def test_dragon_loads_and_is_closed():
     # 16 edges are shared by four triangles (two sheets touching) but pair up in orientation
     assert report.non_manifold_edges == 16 and report.open_edges == 0
     assert report.volume > 0.0
-    np.testing.assert_allclose(report.bounds, (-0.625763, 0.625964, 0.0, 0.882636, -0.280047, 0.279827),
-                               atol=1e-6)
+    np.testing.assert_allclose(report.bounds, (-0.625763, 0.625964, 0.0, 0.882636, -0.280047, 0.279827), atol=1e-6)
 
 
 def test_aligned_box_detection():
@@ -158,8 +157,9 @@ def test_aligned_box_detection():
 # ----------------------------------------------------------------------------- inside test
 def test_winding_number_of_a_box():
     box = unit_box()
-    w = inside.winding_number(np.array([[0.5, 0.5, 0.5], [1.5, 0.5, 0.5], [0.5, 0.5, 1.0 + 1e-9],
-                                        [0.9, 0.1, 0.99]]), box)
+    w = inside.winding_number(
+        np.array([[0.5, 0.5, 0.5], [1.5, 0.5, 0.5], [0.5, 0.5, 1.0 + 1e-9], [0.9, 0.1, 0.99]]), box
+    )
     # inside 1, outside 0, 1e-9 off a face ~0: the face's -2π cancels the other faces' +2π, leaving
     # O(1e-8) cancellation error at that distance; 1e-6 is far below the 0.5 decision threshold
     np.testing.assert_allclose(w, [1.0, 0.0, 0.0, 1.0], atol=1e-6)
@@ -220,8 +220,7 @@ def test_fast_winding_number_matches_exact():
     # and 2x above the largest deviation measured on the dragon (0.025)
     sphere = pv.Sphere(radius=1.0, theta_resolution=60, phi_resolution=60).triangulate()
     rng = np.random.default_rng(6)
-    p = np.vstack([rng.uniform(-2, 2, size=(1000, 3)),
-                   rng.normal(size=(1000, 3))])
+    p = np.vstack([rng.uniform(-2, 2, size=(1000, 3)), rng.normal(size=(1000, 3))])
     p[1000:] *= (1.0 + rng.uniform(-0.02, 0.02, size=(1000, 1))) / np.linalg.norm(p[1000:], axis=1)[:, None]
     exact = inside.winding_number(p, sphere)
     fast = inside.fast_winding_number(p, sphere)

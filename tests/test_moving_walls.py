@@ -1,5 +1,6 @@
 """Kinematic walls (issue 19): prescribed motions (ipsph.motion), the piston acceptance test, bad
 motion input, and that static scenes do not see the moving-wall machinery."""
+
 from __future__ import annotations
 
 import math
@@ -22,10 +23,14 @@ X0 = np.array([[0.0, 0.0, 0.0], [0.3, 0.1, -0.2], [1.0, 2.0, 3.0]])
 def test_every_motion_starts_at_the_placement():
     """The scene places the wall at t = 0: every motion is an offset from there (a phase or a first
     keyframe away from the identity must not make the wall jump at the first step)."""
-    motions = [MotionSpec(type="constant", velocity=(1.0, 2.0, 0.0), angular_velocity=(0.0, 90.0, 0.0)),
-               MotionSpec(type="sinusoid", amplitude=0.1, angle_amplitude=20.0, period=1.3, phase_deg=37.0),
-               MotionSpec(type="keyframes", keyframes=(Keyframe(0.0, (0.5, 0, 0), (0, 0, 1), 30.0),
-                                                       Keyframe(1.0, (1.0, 0, 0), (0, 0, 1), 60.0)))]
+    motions = [
+        MotionSpec(type="constant", velocity=(1.0, 2.0, 0.0), angular_velocity=(0.0, 90.0, 0.0)),
+        MotionSpec(type="sinusoid", amplitude=0.1, angle_amplitude=20.0, period=1.3, phase_deg=37.0),
+        MotionSpec(
+            type="keyframes",
+            keyframes=(Keyframe(0.0, (0.5, 0, 0), (0, 0, 1), 30.0), Keyframe(1.0, (1.0, 0, 0), (0, 0, 1), 60.0)),
+        ),
+    ]
     for spec in motions:
         m = Motion(spec, pivot=(0.2, 0.2, 0.2))
         assert np.allclose(m.positions(X0, 0.0), X0, atol=1e-12), spec.type
@@ -33,8 +38,10 @@ def test_every_motion_starts_at_the_placement():
 
 def test_sinusoid_follows_its_formula_and_velocity_is_its_derivative():
     a, period, phase = 0.08, 1.2, -90.0
-    m = Motion(MotionSpec(type="sinusoid", axis=(2.0, 0.0, 0.0), amplitude=a, period=period, phase_deg=phase),
-               pivot=(0.0, 0.0, 0.0))
+    m = Motion(
+        MotionSpec(type="sinusoid", axis=(2.0, 0.0, 0.0), amplitude=a, period=period, phase_deg=phase),
+        pivot=(0.0, 0.0, 0.0),
+    )
     w = 2 * math.pi / period
     for t in (0.0, 0.17, 0.6, 1.05):
         s = math.sin(w * t + math.radians(phase)) - math.sin(math.radians(phase))
@@ -46,7 +53,7 @@ def test_sinusoid_follows_its_formula_and_velocity_is_its_derivative():
 
 def test_constant_rotation_moves_points_rigidly_about_the_pivot():
     m = Motion(MotionSpec(type="constant", angular_velocity=(0.0, 0.0, 90.0)), pivot=(1.0, 0.0, 0.0))
-    x = m.positions(np.array([[2.0, 0.0, 0.0]]), 1.0)   # a quarter turn about z through (1, 0, 0)
+    x = m.positions(np.array([[2.0, 0.0, 0.0]]), 1.0)  # a quarter turn about z through (1, 0, 0)
     assert np.allclose(x, [[1.0, 1.0, 0.0]], atol=1e-12)
     assert np.allclose(m.velocities(np.array([[2.0, 0.0, 0.0]]), 0.0), [[0.0, math.pi / 2, 0.0]], atol=1e-7)
 
@@ -57,7 +64,7 @@ def test_keyframes_pass_through_their_keys_smoothly_and_hold_after_the_last():
     p = np.zeros((1, 3))
     assert np.allclose(m.positions(p, 1.0), [[1.0, 0.0, 0.0]], atol=1e-12)
     assert np.allclose(m.positions(p, 2.0), [[1.0, 1.0, 0.0]], atol=1e-12)
-    assert np.allclose(m.positions(p, 5.0), m.positions(p, 2.0), atol=1e-12)      # held
+    assert np.allclose(m.positions(p, 5.0), m.positions(p, 2.0), atol=1e-12)  # held
     # C1 translation at an inner key: the velocity just before and after agrees (Catmull-Rom tangents)
     assert np.allclose(m.velocities(p, 1.0 - 1e-4), m.velocities(p, 1.0 + 1e-4), atol=1e-3)
     # zero tangent at the first and last key: the wall starts and stops smoothly
@@ -83,18 +90,28 @@ LEVEL_RISE_TOLERANCE = 0.05
 
 def _piston_scene(method: str) -> dict:
     return {
-        "simulation": {"method": method, "particle_radius": R, "end_time": T_HOLD + T_MOVE + T_SETTLE,
-                       # the tank's static walls are fitted so the water starts at rest (no corner pop,
-                       # method.md section 1); the piston keeps Akinci's volumes
-                       "fit_wall_volumes": True},
+        "simulation": {
+            "method": method,
+            "particle_radius": R,
+            "end_time": T_HOLD + T_MOVE + T_SETTLE,
+            # the tank's static walls are fitted so the water starts at rest (no corner pop,
+            # method.md section 1); the piston keeps Akinci's volumes
+            "fit_wall_volumes": True,
+        },
         # the water ends 2d short of the piston (a box fluid's last layer): the piston meets it once
         # it is moving, not at t = 0
         "fluid": [{"box": {"min": [0, 0, 0], "max": [FACE0 - D_SPACING, 0.25, 0.2]}}],
         "boundary": [
             {"name": "tank", "box": {"min": [0, 0, 0], "max": [1.1, 0.6, 0.2]}},
-            {"name": "piston", "role": "obstacle", "box": {"min": [FACE0, 0, 0], "max": [FACE0 + 0.06, 0.6, 0.2]},
-             "motion": {"type": "keyframes", "keyframes": [
-                 {"time": T_HOLD}, {"time": T_HOLD + T_MOVE, "translate": [-STROKE, 0, 0]}]}},
+            {
+                "name": "piston",
+                "role": "obstacle",
+                "box": {"min": [FACE0, 0, 0], "max": [FACE0 + 0.06, 0.6, 0.2]},
+                "motion": {
+                    "type": "keyframes",
+                    "keyframes": [{"time": T_HOLD}, {"time": T_HOLD + T_MOVE, "translate": [-STROKE, 0, 0]}],
+                },
+            },
         ],
         "render": {"enabled": False},
     }
@@ -114,7 +131,7 @@ def test_piston_raises_the_level_by_swept_volume_over_free_surface_and_nothing_p
     b = sim.boundary
     gaps = []
 
-    def on_step(_):   # the fluid never gets past the piston's face (all of it starts in front)
+    def on_step(_):  # the fluid never gets past the piston's face (all of it starts in front)
         gaps.append(b.x[b.groups == 2][:, 0].min() - sim.positions[:, 0].max())
 
     sim.advance_to(T_HOLD, on_step)
@@ -148,23 +165,30 @@ role = "obstacle"
 [render]
 enabled = false
 """
-BOX = 'box = { min = [0.5, 0.1, 0.1], max = [0.7, 0.3, 0.3] }'
+BOX = "box = { min = [0.5, 0.1, 0.1], max = [0.7, 0.3, 0.3] }"
 
 
-@pytest.mark.parametrize("extra, key", [
-    ('motion = { type = "sinusoid", amplitude = 0.05, period = 0.0 }', "boundary[1].motion.period"),
-    ('motion = { type = "sinusoid", amplitude = 0.05, period = -1.0 }', "boundary[1].motion.period"),
-    ('motion = { type = "sinusoid", amplitude = 0.05 }', "boundary[1].motion.period"),
-    ('motion = { type = "keyframes", keyframes = [{ time = 0.5 }, { time = 0.2, translate = [0.1, 0, 0] }] }',
-     "boundary[1].motion.keyframes[1].time"),
-    ('motion = { type = "keyframes", keyframes = [{ time = 0.5 }, { time = 0.5 }] }',
-     "boundary[1].motion.keyframes[1].time"),
-    ('motion = { type = "constant", amplitude = 0.1 }', "boundary[1].motion.amplitude"),
-    ('density = 0.0', "boundary[1].density"),
-    ('density = -500.0', "boundary[1].density"),
-    ('density = 500.0\nmass = 2.0', "boundary[1].mass"),
-    ('density = 500.0\nmotion = { type = "constant", velocity = [1, 0, 0] }', "boundary[1].motion.type"),
-])
+@pytest.mark.parametrize(
+    "extra, key",
+    [
+        ('motion = { type = "sinusoid", amplitude = 0.05, period = 0.0 }', "boundary[1].motion.period"),
+        ('motion = { type = "sinusoid", amplitude = 0.05, period = -1.0 }', "boundary[1].motion.period"),
+        ('motion = { type = "sinusoid", amplitude = 0.05 }', "boundary[1].motion.period"),
+        (
+            'motion = { type = "keyframes", keyframes = [{ time = 0.5 }, { time = 0.2, translate = [0.1, 0, 0] }] }',
+            "boundary[1].motion.keyframes[1].time",
+        ),
+        (
+            'motion = { type = "keyframes", keyframes = [{ time = 0.5 }, { time = 0.5 }] }',
+            "boundary[1].motion.keyframes[1].time",
+        ),
+        ('motion = { type = "constant", amplitude = 0.1 }', "boundary[1].motion.amplitude"),
+        ("density = 0.0", "boundary[1].density"),
+        ("density = -500.0", "boundary[1].density"),
+        ("density = 500.0\nmass = 2.0", "boundary[1].mass"),
+        ('density = 500.0\nmotion = { type = "constant", velocity = [1, 0, 0] }', "boundary[1].motion.type"),
+    ],
+)
 def test_bad_motion_or_body_is_refused_naming_the_key(tmp_path, capsys, extra, key):
     s = scene_file(tmp_path, PADDLE.format(shape=BOX, extra=extra))
     line = assert_refused(capsys, tmp_path / "out", s)
@@ -173,7 +197,7 @@ def test_bad_motion_or_body_is_refused_naming_the_key(tmp_path, capsys, extra, k
 
 def test_open_body_mesh_is_refused_naming_the_key(tmp_path, capsys):
     pts, faces = cube(0.5, 0.7)
-    write_obj(tmp_path / "open.obj", pts, faces[:-2])   # one face missing
+    write_obj(tmp_path / "open.obj", pts, faces[:-2])  # one face missing
     s = scene_file(tmp_path, PADDLE.format(shape='mesh = "open.obj"', extra="density = 500.0"))
     line = assert_refused(capsys, tmp_path / "out", s)
     assert "boundary[1].mesh" in line and "closed" in line, line
@@ -183,14 +207,27 @@ def test_a_checkpoint_continues_moving_walls_and_bodies_bit_identically(tmp_path
     """checkpoint.save / restore carries the walls' positions, groups and placements, the bodies'
     states and the last reaction: 5 steps after a restore equal 5 uninterrupted ones, bit for bit."""
     from ipsph import checkpoint
-    scene = {"simulation": {"particle_radius": 0.05, "end_time": 1.0},
-             "fluid": [{"box": {"min": [0, 0, 0], "max": [0.6, 0.3, 0.4]}}],
-             "boundary": [{"name": "tank", "box": {"min": [0, 0, 0], "max": [1.0, 0.6, 0.4]}},
-                          {"name": "paddle", "role": "obstacle", "box": {"min": [0.7, 0, 0], "max": [0.75, 0.6, 0.4]},
-                           "motion": {"type": "sinusoid", "amplitude": 0.05, "period": 0.5}},
-                          {"name": "crate", "role": "obstacle", "box": {"min": [0.2, 0.25, 0.1], "max": [0.4, 0.35, 0.3]},
-                           "density": 500.0}],
-             "render": {"enabled": False}}
+
+    scene = {
+        "simulation": {"particle_radius": 0.05, "end_time": 1.0},
+        "fluid": [{"box": {"min": [0, 0, 0], "max": [0.6, 0.3, 0.4]}}],
+        "boundary": [
+            {"name": "tank", "box": {"min": [0, 0, 0], "max": [1.0, 0.6, 0.4]}},
+            {
+                "name": "paddle",
+                "role": "obstacle",
+                "box": {"min": [0.7, 0, 0], "max": [0.75, 0.6, 0.4]},
+                "motion": {"type": "sinusoid", "amplitude": 0.05, "period": 0.5},
+            },
+            {
+                "name": "crate",
+                "role": "obstacle",
+                "box": {"min": [0.2, 0.25, 0.1], "max": [0.4, 0.35, 0.3]},
+                "density": 500.0,
+            },
+        ],
+        "render": {"enabled": False},
+    }
     a = Simulation.from_scene(scene)
     for _ in range(5):
         a.step()

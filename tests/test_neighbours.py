@@ -1,4 +1,5 @@
 """Neighbour search against the brute-force oracle (PySPH NNPS-style tests)."""
+
 import numpy as np
 import pytest
 
@@ -7,7 +8,7 @@ from ipsph.neighbours import NeighbourSearch, brute_force_neighbours, cell_ids
 
 
 def _lists(idx, cnt):
-    return [np.sort(idx[i, :cnt[i]]) for i in range(len(cnt))]
+    return [np.sort(idx[i, : cnt[i]]) for i in range(len(cnt))]
 
 
 @pytest.mark.parametrize("seed,n,nb", [(0, 500, 0), (1, 800, 300), (2, 50, 1000)])
@@ -52,13 +53,13 @@ def test_fluid_far_from_walls_skips_the_wall_search_and_misses_nothing():
     cells = np.empty(len(xs), dtype=np.int64)
     cell_ids(xs, g.origin, g.inv_cell, g.dims, cells)
     skipped = np.diff(search.wall_start)[cells] == 0  # cells without wall candidates
-    assert skipped.mean() > 0.5                      # the mask does skip most of the column
-    assert np.all(nl.boundary_count[skipped] == 0)   # and only particles without wall neighbours
+    assert skipped.mean() > 0.5  # the mask does skip most of the column
+    assert np.all(nl.boundary_count[skipped] == 0)  # and only particles without wall neighbours
     assert np.any((nl.boundary_count == 0) & ~skipped)  # the mask is conservative near its edge
     # each cell's candidates: ascending, and every wall point within h of some point of the cell
     start, cand = search.wall_start, search.wall_cand
     for c in np.unique(cells[~skipped]):
-        got = cand[start[c]:start[c + 1]]
+        got = cand[start[c] : start[c + 1]]
         assert np.all(np.diff(got) > 0)
         idx = np.array(np.unravel_index(c, g.dims[::-1])[::-1])
         lo = g.origin + idx * g.cell
@@ -76,7 +77,7 @@ def test_strict_radius_and_self_excluded():
     xs = x[perm]
     nl = search.lists
     for i in range(3):
-        got = set(nl.fluid[i, :nl.fluid_count[i]])
+        got = set(nl.fluid[i, : nl.fluid_count[i]])
         assert i not in got
         want = {j for j in range(3) if j != i and np.linalg.norm(xs[i] - xs[j]) < h}
         assert got == want
@@ -93,5 +94,5 @@ def test_grid_grows_when_fluid_leaves_it():
     xs = x2[perm]
     want = brute_force_neighbours(xs, xs, h, True)
     nl = search.lists
-    assert all(np.array_equal(np.sort(nl.fluid[i, :nl.fluid_count[i]]), want[i]) for i in range(len(xs)))
+    assert all(np.array_equal(np.sort(nl.fluid[i, : nl.fluid_count[i]]), want[i]) for i in range(len(xs)))
     assert nl.boundary_count.sum() == 0

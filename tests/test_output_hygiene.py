@@ -2,6 +2,7 @@
 clears everything an earlier run wrote; --resume renders the frames that have no render; Ctrl-C
 prints one line per process and no traceback; the size is checked first and a run of hours is
 announced (and needs --yes off a terminal); progress lines reach a log file."""
+
 from __future__ import annotations
 
 import os
@@ -18,7 +19,12 @@ from ipsph.io import RUN_JSON, RUN_PVD
 from ipsph.io.pvd import PvdSeries
 
 REPO = Path(__file__).resolve().parents[1]
-COARSE = ["--threads", "1", "--set", "simulation.particle_radius=0.04"]  # the default dam break, a few hundred particles
+COARSE = [
+    "--threads",
+    "1",
+    "--set",
+    "simulation.particle_radius=0.04",
+]  # the default dam break, a few hundred particles
 SMALL_RENDER = ["--set", "render.width=320", "--set", "render.height=180"]
 
 
@@ -30,19 +36,25 @@ def run_cli(capsys, *args) -> tuple[int, str]:
 @pytest.fixture(scope="module")
 def gl():
     from ipsph.render import gl_available
+
     ok, why = gl_available()
     if not ok:
         pytest.skip(f"no offscreen GL here: {why}")
 
 
 # -- a refused run creates nothing -----------------------------------------------------------------
-@pytest.mark.parametrize("why, args", [
-    ("over --max-particles", ["--max-particles", "100"]),
-    ("radius too large for the fluid", ["--set", "simulation.particle_radius=0.2"]),
-    ("render image too large", ["--set", "render.width=200000", "--set", "render.height=200000"]),
-    ("hours of work, no terminal, no --yes", ["--set", "simulation.particle_radius=0.002",
-                                              "--max-particles", "100000000"]),
-])
+@pytest.mark.parametrize(
+    "why, args",
+    [
+        ("over --max-particles", ["--max-particles", "100"]),
+        ("radius too large for the fluid", ["--set", "simulation.particle_radius=0.2"]),
+        ("render image too large", ["--set", "render.width=200000", "--set", "render.height=200000"]),
+        (
+            "hours of work, no terminal, no --yes",
+            ["--set", "simulation.particle_radius=0.002", "--max-particles", "100000000"],
+        ),
+    ],
+)
 def test_a_refused_run_creates_no_folder(tmp_path, capsys, why, args):
     out = tmp_path / "a" / "b" / "out"
     code, err = run_cli(capsys, "-o", out, *args)
@@ -63,9 +75,14 @@ def test_a_refused_overwrite_keeps_the_earlier_run(tmp_path, capsys):
 # -- --overwrite clears what was written before -----------------------------------------------------
 def test_overwrite_removes_everything_the_earlier_run_wrote(tmp_path, capsys):
     from ipsph.plots import plot_runs
+
     out = tmp_path / "out"
-    assert run_cli(capsys, "-o", out, "--no-render", "--end-time", 0.12, *COARSE,
-                   "--set", "output.checkpoint_interval=0.04")[0] == 0
+    assert (
+        run_cli(
+            capsys, "-o", out, "--no-render", "--end-time", 0.12, *COARSE, "--set", "output.checkpoint_interval=0.04"
+        )[0]
+        == 0
+    )
     plots = plot_runs([out], None)  # OUT/plots/*.png, as `ipsph plot OUT` writes them
     assert plots and all(Path(p).is_file() for p in plots)
     (out / "renders").mkdir()
@@ -75,19 +92,43 @@ def test_overwrite_removes_everything_the_earlier_run_wrote(tmp_path, capsys):
     code, err = run_cli(capsys, "-o", out, "--overwrite", "--no-render", "--end-time", 0.04, *COARSE)
     assert code == 0, err
     left = sorted(str(p.relative_to(out)) for p in out.rglob("*") if p.is_file())
-    assert left == sorted(["boundary.vtu", "boundary_surface.vtp", "frames/fluid_000000.vtu",
-                           "frames/fluid_000001.vtu", RUN_JSON, RUN_PVD, "fluid.pvd", "paraview_view.py",
-                           "stats.csv"])
+    assert left == sorted(
+        [
+            "boundary.vtu",
+            "boundary_surface.vtp",
+            "frames/fluid_000000.vtu",
+            "frames/fluid_000001.vtu",
+            RUN_JSON,
+            RUN_PVD,
+            "fluid.pvd",
+            "paraview_view.py",
+            "stats.csv",
+        ]
+    )
 
 
 # -- --resume renders what has no render ------------------------------------------------------------
 def test_resume_renders_the_earlier_frames_that_have_no_render(tmp_path, capsys, gl):
     out = tmp_path / "out"
-    assert run_cli(capsys, "-o", out, "--no-render", "--end-time", 0.12, *COARSE,
-                   "--set", "output.checkpoint_interval=0.04")[0] == 0
+    assert (
+        run_cli(
+            capsys, "-o", out, "--no-render", "--end-time", 0.12, *COARSE, "--set", "output.checkpoint_interval=0.04"
+        )[0]
+        == 0
+    )
     assert not (out / "renders").exists()
-    code, err = run_cli(capsys, "-o", out, "--resume", "--end-time", 0.2, *COARSE, *SMALL_RENDER,
-                        "--set", "output.checkpoint_interval=0.04")
+    code, err = run_cli(
+        capsys,
+        "-o",
+        out,
+        "--resume",
+        "--end-time",
+        0.2,
+        *COARSE,
+        *SMALL_RENDER,
+        "--set",
+        "output.checkpoint_interval=0.04",
+    )
     assert code == 0, err
     assert "rendering the 4 earlier frames that have no render" in err, err
     frames = len(PvdSeries.load(out / RUN_PVD).frames)
@@ -100,9 +141,13 @@ def test_resume_renders_the_earlier_frames_that_have_no_render(tmp_path, capsys,
 def test_ctrl_c_prints_one_line_and_no_traceback(tmp_path, gl):
     """A terminal's Ctrl-C signals the whole process group: the run and its render process."""
     out = tmp_path / "out"
-    proc = subprocess.Popen([sys.executable, "-m", "ipsph", "run", "-o", str(out), "--threads", "1",
-                             "--end-time", "20", *SMALL_RENDER], stderr=subprocess.PIPE,
-                            stdout=subprocess.PIPE, text=True, start_new_session=True)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "ipsph", "run", "-o", str(out), "--threads", "1", "--end-time", "20", *SMALL_RENDER],
+        stderr=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
     try:
         deadline = time.monotonic() + 300
         while not (out / "frames" / "fluid_000002.vtu").exists():  # stepping; the renderer started with it
@@ -129,10 +174,14 @@ def test_ctrl_c_prints_one_line_and_no_traceback(tmp_path, gl):
 def test_the_render_process_does_not_outlive_a_killed_run(tmp_path, gl):
     """It ignores SIGINT (the run decides), so a run killed outright (SIGKILL) must not leave it behind."""
     import psutil
+
     out = tmp_path / "out"
-    proc = subprocess.Popen([sys.executable, "-m", "ipsph", "run", "-o", str(out), "--threads", "1",
-                             "--end-time", "20", *SMALL_RENDER], stdout=subprocess.DEVNULL,
-                            stderr=subprocess.DEVNULL, start_new_session=True)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "ipsph", "run", "-o", str(out), "--threads", "1", "--end-time", "20", *SMALL_RENDER],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
+    )
     children = []
     try:
         deadline = time.monotonic() + 300
@@ -174,6 +223,7 @@ def test_a_run_of_hours_is_announced_and_needs_yes_off_a_terminal(tmp_path, caps
     assert not out.exists()
     from ipsph import estimate
     from ipsph.scene import default_scene_path, load_scene
+
     small = load_scene(default_scene_path())
     fine = load_scene(default_scene_path(), ["simulation.particle_radius=0.01"])
     # the cost grows with particles and with steps per simulated second (dt_max ~ r)
@@ -187,8 +237,10 @@ def test_a_run_of_hours_is_announced_and_needs_yes_off_a_terminal(tmp_path, caps
 
 def test_progress_lines_reach_a_log_file(tmp_path, capsys, monkeypatch):
     from ipsph.io import folder
+
     monkeypatch.setattr(folder, "PROGRESS_EVERY_S", 0.0)  # one line per step instead of every 10 s
     from ipsph.scene import default_scene_path, load_scene
+
     scene = load_scene(default_scene_path(), ["simulation.particle_radius=0.04", "simulation.end_time=0.08"])
     assert runner.run(scene, runner.RunOptions(out_dir=tmp_path / "out", render=False)) == 0
     err = capsys.readouterr().err
@@ -209,6 +261,7 @@ def test_the_summary_splits_the_wall_time(tmp_path, capsys):
     assert len(done) == 1 and len(split) == 1, err
     assert "compile" in split[0] and "stepping" in split[0]
     from ipsph.io.provenance import read_run_json
+
     sp = read_run_json(out / RUN_JSON)["time_split_seconds"]
     parts = [sp[k] for k in ("setup", "compile", "stepping", "renders")]
     assert all(v >= 0 for v in parts)
@@ -216,16 +269,23 @@ def test_the_summary_splits_the_wall_time(tmp_path, capsys):
     assert 0.8 * sp["total"] <= sum(parts) <= sp["total"] * (1 + 1e-9)
 
 
-@pytest.mark.parametrize("method, absent", [("ipsph", ("densities", "densitySolve")),
-                                            ("pf", ("densities", "densitySolve", "divergenceSolve")),
-                                            ("dfsph", ("solvePDConstraints",))])
+@pytest.mark.parametrize(
+    "method, absent",
+    [
+        ("ipsph", ("densities", "densitySolve")),
+        ("pf", ("densities", "densitySolve", "divergenceSolve")),
+        ("dfsph", ("solvePDConstraints",)),
+    ],
+)
 def test_stats_leave_out_the_phases_a_method_lacks_and_errors_are_not_negative(tmp_path, capsys, method, absent):
     import numpy as np
     from ipsph.io.stats import read_stats
+
     out = tmp_path / "out"
     assert run_cli(capsys, "-o", out, "--no-render", "--end-time", 0.08, "--method", method, *COARSE)[0] == 0
     s = read_stats(out / "stats.csv")
     from ipsph.params import PHASES
+
     for phase in PHASES:
         col = s[f"ms_{phase}"]
         if phase in absent:

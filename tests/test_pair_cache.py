@@ -4,6 +4,7 @@ The cached passes must compute what the uncached ones do, from a cache filled by
 two filling passes (the density pass for DFSPH, the viscosity pass for IPSPH), and the methods
 must hand the solves the cache those passes returned, within `solver.pair_cache_mb`.
 """
+
 import dataclasses
 
 import numpy as np
@@ -11,8 +12,15 @@ import pytest
 
 from ipsph.kernels import grad_w_factor
 from ipsph.backends.cpu import CPUBackend
-from ipsph.backends.cpu_passes import (NO_DISPLACEMENT, NO_PAIR_CACHE, apply_stiffness, density_factor_lambda,
-                                       density_residual, divergence_residual, xsph)
+from ipsph.backends.cpu_passes import (
+    NO_DISPLACEMENT,
+    NO_PAIR_CACHE,
+    apply_stiffness,
+    density_factor_lambda,
+    density_residual,
+    divergence_residual,
+    xsph,
+)
 from ipsph.scene import default_scene_path, load_scene
 from ipsph.simulation import Simulation, sample_scene
 
@@ -26,8 +34,10 @@ TRAJECTORY_ATOL = 1e-9  # m, and m/s
 
 
 def _scene(method, cache_mb, end_time=0.3):
-    scene = load_scene(default_scene_path(), [f"simulation.method={method}", f"simulation.end_time={end_time}",
-                                              "simulation.particle_radius=0.04"])
+    scene = load_scene(
+        default_scene_path(),
+        [f"simulation.method={method}", f"simulation.end_time={end_time}", "simulation.particle_radius=0.04"],
+    )
     return dataclasses.replace(scene, solver=dataclasses.replace(scene.solver, pair_cache_mb=cache_mb))
 
 
@@ -46,11 +56,44 @@ def _filled(sim, by):
     n, k = nf.shape
     cache = np.full((n, 3, k), np.nan)
     if by == "density":
-        density_factor_lambda(st.x, fl.mf, b.x, b.m, nf, cf, nl.boundary, nl.boundary_count, fl.h, fl.rho0, d.rho,
-                              d.alpha, d.lam, d.err, d.n_nbrs, d.gb, cache)
+        density_factor_lambda(
+            st.x,
+            fl.mf,
+            b.x,
+            b.m,
+            nf,
+            cf,
+            nl.boundary,
+            nl.boundary_count,
+            fl.h,
+            fl.rho0,
+            d.rho,
+            d.alpha,
+            d.lam,
+            d.err,
+            d.n_nbrs,
+            d.gb,
+            cache,
+        )
     else:
-        xsph(st.x, st.v, fl.mf, d.rho, d.gb, d.gvb, d.lam, nf, cf, fl.h, 0.01, 0.0, np.empty((n, 3)), np.empty(n),
-             NO_DISPLACEMENT, cache)
+        xsph(
+            st.x,
+            st.v,
+            fl.mf,
+            d.rho,
+            d.gb,
+            d.gvb,
+            d.lam,
+            nf,
+            cf,
+            fl.h,
+            0.01,
+            0.0,
+            np.empty((n, 3)),
+            np.empty(n),
+            NO_DISPLACEMENT,
+            cache,
+        )
     return cache
 
 

@@ -5,6 +5,7 @@ display: without one they start an Xvfb of their own. `.ci/run` installs both (`
 paraview xvfb`). They skip where pvpython (or, with no display, Xvfb) is not installed, except
 under CI (CI=true), where that fails.
 """
+
 import csv
 import json
 import math
@@ -62,8 +63,11 @@ def pvpython():
     xvfb = shutil.which("Xvfb")
     if not xvfb:
         _missing("no display and no Xvfb for Debian's X-only pvpython: apt-get install -y xvfb")
-    server = subprocess.Popen([xvfb, "-displayfd", "1", "-screen", "0", "1920x1080x24", "-nolisten", "tcp",
-                               "-noreset"], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+    server = subprocess.Popen(
+        [xvfb, "-displayfd", "1", "-screen", "0", "1920x1080x24", "-nolisten", "tcp", "-noreset"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+    )
     try:
         number = server.stdout.readline().strip()  # written once the server accepts clients
         assert number.isdigit(), f"Xvfb did not start (exit status {server.poll()})"
@@ -104,8 +108,22 @@ def dam(tmp_path_factory):
     """The default dam break to t = 0.48 s, with the scene's colour range (without one, a run with no
     renders colours by its top speed, which one spray particle can set)."""
     out = tmp_path_factory.mktemp("pv") / "dam"
-    assert main(["run", "--end-time", "0.48", "--no-render", "--quiet", "-o", str(out),
-                 "--set", f"render.speed_range=[0.0,{SPEED_TOP}]"]) == 0
+    assert (
+        main(
+            [
+                "run",
+                "--end-time",
+                "0.48",
+                "--no-render",
+                "--quiet",
+                "-o",
+                str(out),
+                "--set",
+                f"render.speed_range=[0.0,{SPEED_TOP}]",
+            ]
+        )
+        == 0
+    )
     return out
 
 
@@ -127,6 +145,7 @@ def test_run_writes_named_parts_fluid_series_field_data_and_script(dam):
     fluid = (dam / "fluid.pvd").read_text()
     assert fluid.count("<DataSet") == 13 and "boundary" not in fluid
     import pyvista as pv
+
     reader = pv.get_reader(str(dam / "fluid.pvd"))
     assert reader.time_values[-1] == pytest.approx(0.48)
     run = json.loads((dam / "run.json").read_text())
@@ -135,6 +154,7 @@ def test_run_writes_named_parts_fluid_series_field_data_and_script(dam):
     assert grid.field_data["particle_radius"][0] == r
     assert grid.field_data["sph_spatial_step"][0] == pytest.approx(2 * r)  # VTK's cubic reaches 2 steps = 4r
     import meshio  # reads the frame whole (its raw-offset rewriting once misread `velocity` after field data)
+
     m = meshio.read(dam / "frames" / "fluid_000012.vtu")
     assert m.point_data["velocity"].shape == (run["fluid_particles"], 3)
     assert m.field_data["particle_radius"][0] == r
@@ -153,8 +173,9 @@ def test_paraview_command_rewrites_an_older_folder(dam, tmp_path, capsys):
     (old / "fluid.pvd").unlink()
     (old / "paraview_view.py").unlink()
     lines = (old / "run.pvd").read_text().splitlines()
-    unnamed = [ln.replace(' name="fluid"', "").replace(' name="boundary"', "") for ln in lines
-               if "boundary_surface" not in ln]
+    unnamed = [
+        ln.replace(' name="fluid"', "").replace(' name="boundary"', "") for ln in lines if "boundary_surface" not in ln
+    ]
     (old / "run.pvd").write_text("\n".join(unnamed))
     assert main(["paraview", str(old)]) == 0
     assert "paraview_view.py" in capsys.readouterr().err
@@ -202,9 +223,9 @@ def test_screenshot_of_the_dam_break_is_velocity_coloured_and_unobstructed(pvpyt
     px, py, depth, ppm = _project(x.astype(float), s["camera"], s["image_size"])
     rad = s["particle_radius"] * ppm
     h, w = img.shape[:2]
-    owner = np.full((h, w), -1)      # the nearest particle covering each pixel
-    inner = np.zeros((h, w), bool)   # ... and whether the pixel is in its inner disc
-    for i in np.argsort(-depth):     # far to near: nearer particles paint over
+    owner = np.full((h, w), -1)  # the nearest particle covering each pixel
+    inner = np.zeros((h, w), bool)  # ... and whether the pixel is in its inner disc
+    for i in np.argsort(-depth):  # far to near: nearer particles paint over
         x0, x1 = int(max(px[i] - rad[i], 0)), int(min(px[i] + rad[i] + 1, w))
         y0, y1 = int(max(py[i] - rad[i], 0)), int(min(py[i] + rad[i] + 1, h))
         if x0 >= x1 or y0 >= y1:
@@ -213,7 +234,7 @@ def test_screenshot_of_the_dam_break_is_velocity_coloured_and_unobstructed(pvpyt
         d2 = ((xx + 0.5 - px[i]) ** 2 + (yy + 0.5 - py[i]) ** 2) / rad[i] ** 2
         disc = d2 <= 1.0
         owner[y0:y1, x0:x1][disc] = i
-        inner[y0:y1, x0:x1][disc] = d2[disc] <= INNER_DISC ** 2
+        inner[y0:y1, x0:x1][disc] = d2[disc] <= INNER_DISC**2
 
     lo, hi = s["speed_range"]
     stops = np.array(s["speed_colours"])
@@ -236,12 +257,12 @@ def test_screenshot_of_the_dam_break_is_velocity_coloured_and_unobstructed(pvpyt
     corners = np.array([[cx, cy, cz] for cx in b[0] for cy in b[1] for cz in b[2]])
     cx, cy, _, _ = _project(corners, s["camera"], s["image_size"])
     near = np.zeros((h, w), bool)
-    grow = (owner >= 0)
+    grow = owner >= 0
     for _ in range(4):  # a few pixels around the fluid's discs (rims, spray)
         grow = grow | np.roll(grow, 1, 0) | np.roll(grow, -1, 0) | np.roll(grow, 1, 1) | np.roll(grow, -1, 1)
     near |= grow
     box = np.zeros((h, w), bool)
-    box[int(cy.min()) + 5:int(cy.max()) - 5, int(cx.min()) + 5:int(cx.max()) - 5] = True
+    box[int(cy.min()) + 5 : int(cy.max()) - 5, int(cx.min()) + 5 : int(cx.max()) - 5] = True
     empty = box & ~near
     rgb = img[empty]
     sprite = ((rgb[:, 2] - rgb[:, 0]) > 45) | (rgb.min(axis=1) > 170)
@@ -259,21 +280,27 @@ def test_sph_line_through_the_tank_is_hydrostatic(pvpython, tank, tmp_path):
     _run_script(pvpython, tank, "--line-csv", line, "--every-frame")
     with open(line, newline="") as fh:
         rows = list(csv.DictReader(fh))
-    col = {k: np.array([float(r[k]) for r in rows]) for k in ("Time", "Points:1", "pressure", "density",
-                                                                 "Shepard Summation")}
+    col = {
+        k: np.array([float(r[k]) for r in rows])
+        for k in ("Time", "Points:1", "pressure", "density", "Shepard Summation")
+    }
     assert len(np.unique(col["Time"])) == round(TANK_END * 10) + 1  # every frame
     late = col["Time"] >= TANK_AVERAGE_FROM - 1e-9
     ys = np.unique(col["Points:1"][late])
-    mean = {k: np.array([col[k][late & (col["Points:1"] == y)].mean() for y in ys])
-            for k in ("pressure", "density", "Shepard Summation")}
+    mean = {
+        k: np.array([col[k][late & (col["Points:1"] == y)].mean() for y in ys])
+        for k in ("pressure", "density", "Shepard Summation")
+    }
     wet = ys[mean["Shepard Summation"] >= 0.5]  # the free surface: where the Shepard sum falls through 1/2
     interior = (ys >= wet.min() + support) & (ys <= wet.max() - support)
     assert interior.sum() >= 15
     slope = np.polyfit(ys[interior], mean["pressure"][interior], 1)[0]
     assert abs(-slope / (rho0 * g) - 1) <= SLOPE_TOL, f"dp/dy = {slope:.0f} Pa/m against -rho0 g = {-rho0 * g:.0f}"
     rho = mean["density"][interior]
-    print(f"dp/dy = {slope:.0f} Pa/m = {-slope / (rho0 * g):.4f} rho0 g; interior density "
-          f"{rho.min():.2f}..{rho.max():.2f} kg/m^3 over {interior.sum()} points")
+    print(
+        f"dp/dy = {slope:.0f} Pa/m = {-slope / (rho0 * g):.4f} rho0 g; interior density "
+        f"{rho.min():.2f}..{rho.max():.2f} kg/m^3 over {interior.sum()} points"
+    )
     assert np.abs(rho / rho0 - 1).max() <= DENSITY_TOL, f"interior density {rho.min():.1f}..{rho.max():.1f}"
 
 
@@ -297,8 +324,14 @@ def test_script_in_the_gui_python_shell_sets_up_and_hides_the_sph_line(pvpython,
     probe = tmp_path / "gui_probe.py"
     probe.write_text(GUI_PROBE)
     cmd, env = pvpython
-    proc = subprocess.run(cmd + [str(probe), str(dam / "paraview_view.py")], capture_output=True, text=True,
-                          timeout=300, cwd=tmp_path, env=env)
+    proc = subprocess.run(
+        cmd + [str(probe), str(dam / "paraview_view.py")],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=tmp_path,
+        env=env,
+    )
     assert proc.returncode == 0, proc.stderr[-4000:]
     got = json.loads(proc.stdout.strip().splitlines()[-1])
     s = view_settings(dam)

@@ -3,6 +3,7 @@
 The peer tests skip (with the reason) when pySPlisHSPlasH is not installed, which is the case in CI:
 it is a benchmark peer, never a dependency.
 """
+
 from __future__ import annotations
 
 import math
@@ -92,10 +93,24 @@ def test_peak_rss_and_machine_info():
 def test_peer_param_args_and_env():
     from ipsph.benchmark import peer
 
-    args = peer._param_args({"boundaryHandlingMethod": 0, "Fluid:viscosity": 0.01, "gravitation": [0, -9.81, 0],
-                             "enableDivergenceSolver": True})
-    assert args == ["--param", "boundaryHandlingMethod:0", "--param", "Fluid:viscosity:0.01",
-                    "--param", "gravitation:0,-9.81,0", "--param", "enableDivergenceSolver:true"]
+    args = peer._param_args(
+        {
+            "boundaryHandlingMethod": 0,
+            "Fluid:viscosity": 0.01,
+            "gravitation": [0, -9.81, 0],
+            "enableDivergenceSolver": True,
+        }
+    )
+    assert args == [
+        "--param",
+        "boundaryHandlingMethod:0",
+        "--param",
+        "Fluid:viscosity:0.01",
+        "--param",
+        "gravitation:0,-9.81,0",
+        "--param",
+        "enableDivergenceSolver:true",
+    ]
     with pytest.raises(ConfigError):
         peer._param_args({"a:b:c": 1})
     env = peer.peer_env(3)
@@ -112,9 +127,11 @@ def test_worker_scene_rewrite_keeps_stock_scene(tmp_path):
 
     src = tmp_path / "scenes" / "s.json"
     src.parent.mkdir()
-    stock = {"Configuration": {"simulationMethod": 4, "enablePartioExport": True},
-             "Materials": [{"id": "Fluid", "viscosity": 0.1}],
-             "RigidBodies": [{"geometryFile": "../models/UnitBox.obj"}]}
+    stock = {
+        "Configuration": {"simulationMethod": 4, "enablePartioExport": True},
+        "Materials": [{"id": "Fluid", "viscosity": 0.1}],
+        "RigidBodies": [{"geometryFile": "../models/UnitBox.obj"}],
+    }
     src.write_text(json.dumps(stock))
     params = w.parse_params(["boundaryHandlingMethod:0", "Fluid:viscosity:0.02", "gravitation:0,-1,0"])
     out = w.write_scene(src, tmp_path, "pf", 0.25, params)
@@ -170,8 +187,9 @@ def test_peer_short_double_dam_break(method):
     _require_peer()
     from ipsph.benchmark.peer import run_peer
 
-    r = run_peer(SCENES / "DoubleDamBreak.json", method, 0.05, threads=2,
-                 params={"boundaryHandlingMethod": 0}, timeout=600)
+    r = run_peer(
+        SCENES / "DoubleDamBreak.json", method, 0.05, threads=2, params={"boundaryHandlingMethod": 0}, timeout=600
+    )
     assert r["fluid_particles"] == 4732  # two 0.7 x 0.75 x 0.7 m blocks at r = 0.025 m (SPlisHSPlasH's count)
     assert r["boundary_particles"] > 10_000  # a 3.1 m box sampled at ~r spacing: tens of thousands
     assert r["boundary_handling_method"] == 0

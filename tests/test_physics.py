@@ -3,6 +3,7 @@
 Tolerances are named and justified where they are declared. The runs are module-scoped
 fixtures so each simulation happens once for all the assertions on it.
 """
+
 import dataclasses
 import json
 
@@ -11,7 +12,7 @@ import pytest
 
 from ipsph import meshes
 from ipsph.scene import load_scene, scene_from_dict
-from ipsph.simulation import SETTLE_SPEED, Simulation, sample_scene, wants_settle
+from ipsph.simulation import Simulation, sample_scene, wants_settle
 
 G = 9.81
 RHO0 = 1000.0
@@ -45,12 +46,15 @@ TANK_MAX_SPEED = 0.2
 
 def tank_scene(method, r=0.02, end_time=4.0):
     """A 14^3 = 2,744 particle column at rest in a closed box (method.md section 5's tank)."""
-    return scene_from_dict({
-        "simulation": {"method": method, "particle_radius": r, "end_time": end_time},
-        "time_step": {"dt_max": 0.005},
-        "fluid": [{"name": "column", "box": {"min": [0, 0, 0], "max": [0.6, 0.6, 0.6]}}],
-        "boundary": [{"name": "tank", "role": "container", "box": {"min": [0, 0, 0], "max": [0.6, 1.0, 0.6]}}],
-    }, name=f"tank-{method}")
+    return scene_from_dict(
+        {
+            "simulation": {"method": method, "particle_radius": r, "end_time": end_time},
+            "time_step": {"dt_max": 0.005},
+            "fluid": [{"name": "column", "box": {"min": [0, 0, 0], "max": [0.6, 0.6, 0.6]}}],
+            "boundary": [{"name": "tank", "role": "container", "box": {"min": [0, 0, 0], "max": [0.6, 1.0, 0.6]}}],
+        },
+        name=f"tank-{method}",
+    )
 
 
 def free_surface(x, r=0.02, top_layer=14 * 14):
@@ -73,8 +77,13 @@ def run_tank(method, end_time=4.0):
         rec["escaped"] = max(rec["escaped"], int(np.count_nonzero(np.any((x < lo) | (x > hi), axis=1))))
         if s.time > end_time - 1.0 and s.step % 5 == 0:
             rec["p_fits"].append(pressure_slope(sim, lo, hi))
-    sim.run(end_time=end_time, fps=10, on_step=on_step,
-            on_frame=lambda sm, k: rec["surface"].append(free_surface(sm.positions)))
+
+    sim.run(
+        end_time=end_time,
+        fps=10,
+        on_step=on_step,
+        on_frame=lambda sm, k: rec["surface"].append(free_surface(sm.positions)),
+    )
     rec["t"] = np.array(rec["t"])
     rec["err"] = np.array(rec["err"])
     rec["sim"] = sim
@@ -86,8 +95,7 @@ def pressure_slope(sim, lo, hi):
     h = sim.support
     x, p = sim.positions, sim.pressures
     top = np.percentile(x[:, 1], 99.5)
-    inner = (np.all(x > lo + h, axis=1) & np.all(x[:, [0, 2]] < hi[[0, 2]] - h, axis=1)
-             & (x[:, 1] < top - h))
+    inner = np.all(x > lo + h, axis=1) & np.all(x[:, [0, 2]] < hi[[0, 2]] - h, axis=1) & (x[:, 1] < top - h)
     depth = top - x[inner, 1]
     slope, _ = np.polyfit(depth, p[inner], 1)
     return slope
@@ -109,9 +117,10 @@ def test_tank_surface_holds_and_nothing_is_flung(method):
     r = rec["sim"].scene.particle_radius
     settled = rec["sim"].settle_report
     assert settled and settled["converged"], f"{method}: not settled to rest before t = 0: {settled}"
-    fill = 14 * 2 * r + r   # the sampled lattice's top layer (at 14 d) + r
-    assert abs(rec["surface"][0] - fill) / r <= SURFACE_TOL_R, \
+    fill = 14 * 2 * r + r  # the sampled lattice's top layer (at 14 d) + r
+    assert abs(rec["surface"][0] - fill) / r <= SURFACE_TOL_R, (
         f"{method}: settling moved the surface {(rec['surface'][0] - fill) / r:+.2f} r"
+    )
     drift = np.abs(np.array(rec["surface"]) - rec["surface"][0]) / r
     assert drift.max() <= SURFACE_TOL_R, f"{method}: the surface moved {drift.max():.2f} r"
     assert max(rec["vmax"]) <= TANK_MAX_SPEED, f"{method}: a particle reached {max(rec['vmax']):.2f} m/s"
@@ -121,23 +130,45 @@ def tank_builds(tmp_path, settle="off"):
     """The tank of tank_scene as a box fluid, a closed box mesh fluid and an imported SPlisHSPlasH scene."""
     meshes.box_mesh((0, 0, 0), (0.6, 0.6, 0.6)).save(tmp_path / "column.vtp")
     meshes.box_mesh((-0.5, -0.5, -0.5), (0.5, 0.5, 0.5)).save(tmp_path / "unit_box.obj")
-    base = scene_from_dict({
-        "simulation": {"method": "dfsph", "particle_radius": 0.02, "settle": settle},
-        "fluid": [{"name": "column", "box": {"min": [0, 0, 0], "max": [0.6, 0.6, 0.6]}}],
-        "boundary": [{"name": "tank", "role": "container", "box": {"min": [0, 0, 0], "max": [0.6, 1.0, 0.6]}}],
-    }, name="tank-box")
-    mesh = scene_from_dict({
-        "simulation": {"method": "dfsph", "particle_radius": 0.02, "settle": settle},
-        "fluid": [{"name": "column", "mesh": str(tmp_path / "column.vtp")}],
-        "boundary": [{"name": "tank", "role": "container", "box": {"min": [0, 0, 0], "max": [0.6, 1.0, 0.6]}}],
-    }, name="tank-mesh")
-    (tmp_path / "tank.json").write_text(json.dumps({
-        "Configuration": {"particleRadius": 0.02, "simulationMethod": 4},
-        "RigidBodies": [{"geometryFile": "unit_box.obj", "translation": [0.3, 0.5, 0.3], "scale": [0.6, 1.0, 0.6],
-                         "isDynamic": False, "isWall": True, "mapInvert": True}],
-        "FluidBlocks": [{"denseMode": 0, "start": [0, 0, 0], "end": [0.6, 0.6, 0.6]}]}))
-    return {"box": base, "mesh": mesh,
-            "splishsplash": load_scene(tmp_path / "tank.json", [f"simulation.settle={settle}"])}
+    base = scene_from_dict(
+        {
+            "simulation": {"method": "dfsph", "particle_radius": 0.02, "settle": settle},
+            "fluid": [{"name": "column", "box": {"min": [0, 0, 0], "max": [0.6, 0.6, 0.6]}}],
+            "boundary": [{"name": "tank", "role": "container", "box": {"min": [0, 0, 0], "max": [0.6, 1.0, 0.6]}}],
+        },
+        name="tank-box",
+    )
+    mesh = scene_from_dict(
+        {
+            "simulation": {"method": "dfsph", "particle_radius": 0.02, "settle": settle},
+            "fluid": [{"name": "column", "mesh": str(tmp_path / "column.vtp")}],
+            "boundary": [{"name": "tank", "role": "container", "box": {"min": [0, 0, 0], "max": [0.6, 1.0, 0.6]}}],
+        },
+        name="tank-mesh",
+    )
+    (tmp_path / "tank.json").write_text(
+        json.dumps(
+            {
+                "Configuration": {"particleRadius": 0.02, "simulationMethod": 4},
+                "RigidBodies": [
+                    {
+                        "geometryFile": "unit_box.obj",
+                        "translation": [0.3, 0.5, 0.3],
+                        "scale": [0.6, 1.0, 0.6],
+                        "isDynamic": False,
+                        "isWall": True,
+                        "mapInvert": True,
+                    }
+                ],
+                "FluidBlocks": [{"denseMode": 0, "start": [0, 0, 0], "end": [0.6, 0.6, 0.6]}],
+            }
+        )
+    )
+    return {
+        "box": base,
+        "mesh": mesh,
+        "splishsplash": load_scene(tmp_path / "tank.json", [f"simulation.settle={settle}"]),
+    }
 
 
 def test_tank_starts_at_rest_density_however_it_is_built(tmp_path):
@@ -153,8 +184,9 @@ def test_tank_starts_at_rest_density_however_it_is_built(tmp_path):
         d = 2 * scene.particle_radius
         assert sim.masses.sum() == pytest.approx(RHO0 * sim.n_fluid * d**3, rel=0.01), name
         below_surface = x[:, 1] < x[:, 1].max() - 0.5 * d
-        assert np.abs(rho[below_surface] - 1).max() <= REST_DENSITY_TOL, \
+        assert np.abs(rho[below_surface] - 1).max() <= REST_DENSITY_TOL, (
             f"{name}: rest density {rho[below_surface].min():.5f}..{rho[below_surface].max():.5f} rho0"
+        )
         auto = dataclasses.replace(scene, settle="auto")
         assert wants_settle(auto, fluid_x, fluid_v, boundary_x), f"{name}: a tank at rest is not settled"
         positions[name] = x[np.lexsort(x.T)]
@@ -168,13 +200,20 @@ def test_only_pools_are_settled():
     dam break's column (it is meant to fall; two columns at both ends span the floor but leave its
     middle dry), nor a block thrown in, nor PF (it never comes to rest)."""
     from importlib.resources import files
+
     dam = load_scene(files("ipsph") / "scenes" / "default.toml")
     assert not wants_settle(dam, *sample_scene(dam)[:3])
-    two = scene_from_dict({"simulation": {"particle_radius": 0.02},
-                           "fluid": [{"box": {"min": [0, 0, 0], "max": [0.3, 0.6, 0.6]}},
-                                     {"box": {"min": [0.5, 0, 0], "max": [0.8, 0.6, 0.6]}}],
-                           "boundary": [{"role": "container", "box": {"min": [0, 0, 0], "max": [0.8, 1.0, 0.6]}}]},
-                          name="two-columns")
+    two = scene_from_dict(
+        {
+            "simulation": {"particle_radius": 0.02},
+            "fluid": [
+                {"box": {"min": [0, 0, 0], "max": [0.3, 0.6, 0.6]}},
+                {"box": {"min": [0.5, 0, 0], "max": [0.8, 0.6, 0.6]}},
+            ],
+            "boundary": [{"role": "container", "box": {"min": [0, 0, 0], "max": [0.8, 1.0, 0.6]}}],
+        },
+        name="two-columns",
+    )
     assert not wants_settle(two, *sample_scene(two)[:3])
     tank = tank_scene("ipsph")
     fx, fv, bx, _ = sample_scene(tank)
@@ -197,16 +236,20 @@ def test_tank_density_error_and_hydrostatic_pressure(method):
     mean_err = rec["err"][last].mean()
     assert mean_err <= TANK_DENSITY_ERROR[method], f"{method}: mean density error {100 * mean_err:.4f} %"
     slope = np.median(rec["p_fits"])
-    assert abs(slope / (RHO0 * G) - 1) <= PRESSURE_SLOPE_TOL[method], \
+    assert abs(slope / (RHO0 * G) - 1) <= PRESSURE_SLOPE_TOL[method], (
         f"{method}: dp/ddepth = {slope:.0f} Pa/m, hydrostatic {RHO0 * G:.0f}"
+    )
 
 
 @pytest.mark.parametrize("method", ["ipsph", "pf", "dfsph"])
 def test_free_fall_accelerates_at_g(method):
-    scene = scene_from_dict({
-        "simulation": {"method": method, "particle_radius": 0.025, "end_time": 0.3},
-        "fluid": [{"box": {"min": [0, 0, 0], "max": [0.4, 0.4, 0.4]}, "velocity": [0.3, 0.0, 0.0]}],
-    }, name="free-fall")
+    scene = scene_from_dict(
+        {
+            "simulation": {"method": method, "particle_radius": 0.025, "end_time": 0.3},
+            "fluid": [{"box": {"min": [0, 0, 0], "max": [0.4, 0.4, 0.4]}, "velocity": [0.3, 0.0, 0.0]}],
+        },
+        name="free-fall",
+    )
     sim = Simulation(scene, *sample_scene(scene)[:3])
     t, vy, vx = [], [], []
 
@@ -214,6 +257,7 @@ def test_free_fall_accelerates_at_g(method):
         t.append(s.time)
         vy.append(sim.velocities[:, 1].mean())
         vx.append(sim.velocities[:, 0].mean())
+
     sim.run(end_time=0.3, fps=10, on_step=on_step)
     slope = np.polyfit(t, vy, 1)[0]
     assert abs(slope / -G - 1) <= FREE_FALL_TOL, f"{method}: a = {slope:.4f} m/s^2"

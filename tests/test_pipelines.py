@@ -4,6 +4,7 @@ Each pipeline is stepped for a few frames at a coarse radius (fast, and the same
 meshes are loaded, checked and sampled, its walls built, its method stepped, its frames written).
 The full-resolution pipelines are run by hand (`ipsph run pipelines/X.toml --end-time 0.05`).
 """
+
 from pathlib import Path
 
 import pytest
@@ -14,8 +15,8 @@ from ipsph.scene import load_scene
 
 REPO = Path(__file__).resolve().parents[1]
 PIPELINES = sorted((REPO / "pipelines").glob("*.toml"))
-COARSE_R = 0.05    # m: every pipeline's fluid keeps >= 4 particles across at this radius
-END_TIME = 0.04    # s: two frames (t = 0 and t = 0.04) at the pipelines' 25 fps
+COARSE_R = 0.05  # m: every pipeline's fluid keeps >= 4 particles across at this radius
+END_TIME = 0.04  # s: two frames (t = 0 and t = 0.04) at the pipelines' 25 fps
 
 
 def test_the_pipelines_folder_holds_the_ready_scenes():
@@ -45,6 +46,7 @@ def test_pipeline_steps_from_a_clone(path, tmp_path):
     assert run["completed"] and now > 0 and run["steps"] >= 1
     assert run["frames"] == 2
     import pyvista as pv
+
     reader = pv.get_reader(str(out / "run.pvd"))
     assert len(reader.time_values) == 2
     reader.set_active_time_value(reader.time_values[-1])
@@ -74,6 +76,7 @@ def test_shipped_data_matches_its_provenance(folder):
     generated) with, and the listed files are exactly the ones there (a changed or added file fails)."""
     import hashlib
     import re
+
     base = REPO / folder
     text = (base / "PROVENANCE.md").read_text()
     listed = {}
@@ -81,8 +84,14 @@ def test_shipped_data_matches_its_provenance(folder):
         m = re.match(r"\|\s*`?([\w./-]+\.(?:obj|json))`?\s*\|.*\|\s*([0-9a-f]{64})\s*\|$", line)
         if m:
             listed[m.group(1)] = m.group(2)
-    present = {str(p.relative_to(base)) for p in base.rglob("*") if p.suffix in (".obj", ".json")
-               and p.is_file() and not p.is_symlink() and "models" not in p.relative_to(base).parts}
+    present = {
+        str(p.relative_to(base))
+        for p in base.rglob("*")
+        if p.suffix in (".obj", ".json")
+        and p.is_file()
+        and not p.is_symlink()
+        and "models" not in p.relative_to(base).parts
+    }
     assert present and set(listed) == present
     for name, digest in listed.items():
         assert hashlib.sha256((base / name).read_bytes()).hexdigest() == digest, name
@@ -90,6 +99,7 @@ def test_shipped_data_matches_its_provenance(folder):
 
 def test_shipped_meshes_are_closed_solids():
     from ipsph import meshes
+
     for path in sorted((REPO / "meshes").glob("*.obj")):
         mesh, report = meshes.prepare_mesh(path)
         assert report.closed and report.volume > 0, path.name
@@ -108,6 +118,7 @@ def test_pipeline_steps_with_every_method(path, method):
     """Three steps of each pipeline with each method (the test above runs each pipeline's own)."""
     import numpy as np
     from ipsph.simulation import Simulation, sample_scene
+
     scene = load_scene(path, [f"simulation.particle_radius={COARSE_R}", f"simulation.method={method}"])
     sim = Simulation(scene, *sample_scene(scene)[:3])
     assert (sim.n_fluid > 50 or scene.emitters) and sim.n_boundary > 0  # the tap starts empty

@@ -1,4 +1,5 @@
 """Plots from synthetic stats.csv / run.json folders (no solver needed)."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -15,16 +16,29 @@ def _run(folder, method, scale):
     rng = np.random.default_rng(len(method))
     with StatsWriter(folder / "stats.csv", STATS_COLUMNS) as w:
         for k in range(1, 60):
-            w.write({"step": k, "time": 0.005 * k, "dt": 0.005, "particles": 1000,
-                     "density_error_mean_pct": scale * (0.04 + 0.01 * rng.random()),
-                     "density_error_max_pct": scale * (0.8 + 0.4 * rng.random()),
-                     "divergence_error_pct": 0.05 + 0.02 * rng.random(),
-                     "pd_passes": 3 + k % 3 if method != "dfsph" else 0,
-                     "divergence_iterations": 2 + k % 2,
-                     "density_iterations": 4 + k % 5 if method == "dfsph" else 0,
-                     "max_speed": 0.1 * k, "kinetic_energy": 1.0, "dt_clamped": 0,
-                     "ms_step": 40 * scale, "ms_neighbourSearch": 8, "ms_solvePDConstraints": 20 * scale,
-                     "ms_divergenceSolve": 7, "ms_densitySolve": 0 if method != "dfsph" else 15, "ms_xsph": 3})
+            w.write(
+                {
+                    "step": k,
+                    "time": 0.005 * k,
+                    "dt": 0.005,
+                    "particles": 1000,
+                    "density_error_mean_pct": scale * (0.04 + 0.01 * rng.random()),
+                    "density_error_max_pct": scale * (0.8 + 0.4 * rng.random()),
+                    "divergence_error_pct": 0.05 + 0.02 * rng.random(),
+                    "pd_passes": 3 + k % 3 if method != "dfsph" else 0,
+                    "divergence_iterations": 2 + k % 2,
+                    "density_iterations": 4 + k % 5 if method == "dfsph" else 0,
+                    "max_speed": 0.1 * k,
+                    "kinetic_energy": 1.0,
+                    "dt_clamped": 0,
+                    "ms_step": 40 * scale,
+                    "ms_neighbourSearch": 8,
+                    "ms_solvePDConstraints": 20 * scale,
+                    "ms_divergenceSolve": 7,
+                    "ms_densitySolve": 0 if method != "dfsph" else 15,
+                    "ms_xsph": 3,
+                }
+            )
     write_run_json(folder / "run.json", {"method": method, "status": "completed", "completed": True})
     return folder
 

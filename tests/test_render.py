@@ -2,6 +2,7 @@
 
 GL is probed in a subprocess (a missing GL stack segfaults); render tests skip with its reason.
 """
+
 from __future__ import annotations
 
 import math
@@ -18,8 +19,15 @@ from ipsph.io.pvd import PvdSeries
 from ipsph.io.stats import STATS_COLUMNS, StatsWriter
 from ipsph.io.vtu import write_particles, write_surface
 from ipsph.model import RenderConfig
-from ipsph.render import (VIEWS, camera_for_view, default_speed_range, gl_available, make_video,
-                          render_output, speed_colormap)
+from ipsph.render import (
+    VIEWS,
+    camera_for_view,
+    default_speed_range,
+    gl_available,
+    make_video,
+    render_output,
+    speed_colormap,
+)
 
 SMALL = RenderConfig(width=320, height=180)
 
@@ -39,11 +47,13 @@ def make_output_folder(out: Path, n_frames: int = 3, r: float = 0.02) -> Path:
     bounds = [0.0, 1.0, 0.0, 0.5, 0.0, 0.3]
     box = pv.Box(bounds=bounds).triangulate()
     write_surface(out / "boundary_surface.vtp", box)
-    write_particles(out / "boundary.vtu", box.points, {"volume": np.full(box.n_points, 1e-5),
-                                                       "id": np.arange(box.n_points)}, 0.0)
+    write_particles(
+        out / "boundary.vtu", box.points, {"volume": np.full(box.n_points, 1e-5), "id": np.arange(box.n_points)}, 0.0
+    )
     d = 2 * r
-    g = np.stack(np.meshgrid(np.arange(r, 0.3, d), np.arange(r, 0.3, d), np.arange(r, 0.3 - r, d),
-                             indexing="ij"), -1).reshape(-1, 3)
+    g = np.stack(
+        np.meshgrid(np.arange(r, 0.3, d), np.arange(r, 0.3, d), np.arange(r, 0.3 - r, d), indexing="ij"), -1
+    ).reshape(-1, 3)
     series = PvdSeries(out / "run.pvd", "boundary.vtu")
     with StatsWriter(out / "stats.csv", STATS_COLUMNS) as stats:
         for k in range(n_frames):
@@ -52,14 +62,25 @@ def make_output_folder(out: Path, n_frames: int = 3, r: float = 0.02) -> Path:
             write_particles(out / frame_file(k), g + [0.2 * t, 0, 0], {"velocity": v, "id": np.arange(len(g))}, t)
             series.add(t, frame_file(k))
             stats.write({"step": k + 1, "time": t, "max_speed": float(np.linalg.norm(v, axis=1).max())})
-    write_run_json(out / "run.json", {
-        "scene": {"name": "synthetic", "output": {"fps": 10.0}}, "method": "ipsph", "status": "completed",
-        "completed": True, "particle_radius": r, "fluid_particles": len(g), "domain_bounds": bounds,
-        "frames": n_frames, "render": {**asdict(SMALL), "speed_range": [0.0, 2.0]}})
+    write_run_json(
+        out / "run.json",
+        {
+            "scene": {"name": "synthetic", "output": {"fps": 10.0}},
+            "method": "ipsph",
+            "status": "completed",
+            "completed": True,
+            "particle_radius": r,
+            "fluid_particles": len(g),
+            "domain_bounds": bounds,
+            "frames": n_frames,
+            "render": {**asdict(SMALL), "speed_range": [0.0, 2.0]},
+        },
+    )
     return out
 
 
 # --- no GL needed -------------------------------------------------------------------------------
+
 
 def test_gl_probe_gives_a_reason():
     ok, reason = gl_available()
@@ -94,6 +115,7 @@ def _assert_framed(bounds, pos, focal, up, w=1280, h=720):
     """Every corner of `bounds` projects inside the frame region: in the image, off the colour bar
     (right of FRAME_RIGHT) and off the time label and title (beyond FRAME_V)."""
     from ipsph.render import FRAME_LEFT, FRAME_RIGHT, FRAME_V
+
     pos, focal, up = map(np.asarray, (pos, focal, up))
     fwd = (focal - pos) / np.linalg.norm(focal - pos)
     right = np.cross(fwd, up)
@@ -103,9 +125,9 @@ def _assert_framed(bounds, pos, focal, up, w=1280, h=720):
         rel = c - pos
         depth = rel @ fwd
         assert depth > 0
-        assert abs(rel @ up) / depth <= FRAME_V * tan_v + 1e-9                  # inside vertically
-        u = (rel @ right) / depth / (tan_v * w / h)                             # -1 .. 1 across
-        assert FRAME_LEFT - 1e-9 <= u <= FRAME_RIGHT + 1e-9                     # not under the bar
+        assert abs(rel @ up) / depth <= FRAME_V * tan_v + 1e-9  # inside vertically
+        u = (rel @ right) / depth / (tan_v * w / h)  # -1 .. 1 across
+        assert FRAME_LEFT - 1e-9 <= u <= FRAME_RIGHT + 1e-9  # not under the bar
 
 
 @pytest.mark.parametrize("view", list(VIEWS))
@@ -166,8 +188,10 @@ def test_render_output_refuses_a_non_output_folder(tmp_path):
 
 # --- GL -----------------------------------------------------------------------------------------
 
+
 def _png(path):
     import imageio.v2 as imageio
+
     return imageio.imread(path)[..., :3].astype(np.int32)
 
 
@@ -242,8 +266,9 @@ def test_render_output_writes_pngs_and_videos(gl, tmp_path):
     assert len(frames) == 3 and frames[0].shape[:2] == (180, 320)
 
     # overrides and a frame subset: iso view, only the last frame
-    written = render_output(out, frames=slice(-1, None), config_overrides={"view": "iso", "width": 161,
-                                                                          "height": 91}, video="mp4")
+    written = render_output(
+        out, frames=slice(-1, None), config_overrides={"view": "iso", "width": 161, "height": 91}, video="mp4"
+    )
     assert _png(written[0]).shape == (91, 161, 3)
     with imageio.get_reader(out / "video.mp4") as rd:  # odd size padded to even for yuv420p
         assert rd.count_frames() == 1
@@ -278,7 +303,9 @@ def test_splat_engine_matches_the_all_vtk_render(gl, tmp_path):
     rng = np.random.default_rng(7)
     pts = rng.uniform((-0.1, 0.0, -0.1), (1.1, 1.0, 1.1), (2500, 3))
     vel = rng.normal(0.0, 0.8, (2500, 3))
-    walls = pv.Box(bounds=(0, 1, 0, 1, 0, 1)).triangulate() + pv.Box(bounds=(0.3, 0.7, 0.2, 0.6, 0.3, 0.7)).triangulate()
+    walls = (
+        pv.Box(bounds=(0, 1, 0, 1, 0, 1)).triangulate() + pv.Box(bounds=(0.3, 0.7, 0.2, 0.6, 0.3, 0.7)).triangulate()
+    )
     cfg = RenderConfig(width=480, height=270, view="iso")
     imgs = {}
     for engine in ("splat", "vtk"):
@@ -297,14 +324,34 @@ def test_run_without_gl_warns_once_and_keeps_the_simulation(tmp_path):
     import sys
 
     env = dict(os.environ, __EGL_VENDOR_LIBRARY_FILENAMES=str(tmp_path / "no-such-vendor.json"))
-    probe = subprocess.run([sys.executable, "-c", "from ipsph.render import gl_available; "
-                            "print(gl_available()[0])"], env=env, capture_output=True, text=True, timeout=120)
+    probe = subprocess.run(
+        [sys.executable, "-c", "from ipsph.render import gl_available; print(gl_available()[0])"],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     if probe.stdout.strip() != "False":
         pytest.skip("this machine's GL does not go through libglvnd's EGL vendor files; cannot take GL away")
     out = tmp_path / "out"
-    res = subprocess.run([sys.executable, "-m", "ipsph", "run", "-o", str(out), "--end-time", "0.08",
-                          "--set", "simulation.particle_radius=0.04"], env=env, capture_output=True,
-                         text=True, timeout=300)
+    res = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "ipsph",
+            "run",
+            "-o",
+            str(out),
+            "--end-time",
+            "0.08",
+            "--set",
+            "simulation.particle_radius=0.04",
+        ],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert res.returncode == 0, res.stderr
     # one line about the renders (the solver may add its own: at r = 0.04 the full-mass column's
     # corners pop at t = 0 and a solve can stop at its cap, docs/method.md section 1)

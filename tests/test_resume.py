@@ -1,6 +1,7 @@
 """Checkpoint and --resume (issue 6): a resumed run is bit-identical to an uninterrupted one with the
 same thread count; frames and stats rows after the checkpoint are replaced; a checkpoint from a
 different scene or ipsph version is refused with exit 2. In-process through `cli.main`."""
+
 from __future__ import annotations
 
 import json
@@ -19,8 +20,16 @@ from ipsph.io.pvd import PvdSeries
 from ipsph.io.stats import read_stats
 
 T = 0.24  # 6 frames at 25 fps of the coarse dam break: the column is falling and splashing by then
-BASE = ["--quiet", "--no-render", "--threads", "1", "--set", "simulation.particle_radius=0.04",
-        "--set", "output.checkpoint_interval=0.08"]
+BASE = [
+    "--quiet",
+    "--no-render",
+    "--threads",
+    "1",
+    "--set",
+    "simulation.particle_radius=0.04",
+    "--set",
+    "output.checkpoint_interval=0.08",
+]
 
 
 def run_cli(capsys, out: Path, *args) -> tuple[int, str]:
@@ -83,6 +92,7 @@ def test_resume_after_interrupt_is_bit_identical(uninterrupted, tmp_path, capsys
         if s.step == 9:
             os.kill(os.getpid(), signal.SIGINT)  # the runner's handler: finish the step, final frame, 130
         step(self, s)
+
     monkeypatch.setattr(RunFolder, "step", interrupt_at_step_9)
     out = tmp_path / "B"
     code, err = run_cli(capsys, out, "--end-time", str(T))
@@ -141,8 +151,10 @@ def test_resume_needs_a_checkpoint(tmp_path, capsys):
 
 
 def test_resume_with_other_thread_count_says_so(stopped, capsys):
-    code, err = cli.main(["run", "-o", str(stopped), *BASE[:2], "--threads", "2", *BASE[4:], "--end-time", "0.12",
-                          "--resume"]), capsys.readouterr().err
+    code, err = (
+        cli.main(["run", "-o", str(stopped), *BASE[:2], "--threads", "2", *BASE[4:], "--end-time", "0.12", "--resume"]),
+        capsys.readouterr().err,
+    )
     assert code == 0, err
     assert "checkpoint was written with 1" in err and "--threads 1" in err, err
 
@@ -153,6 +165,7 @@ def test_state_dict_continues_bit_identically(method):
     continuation in a fresh Simulation that matches the uninterrupted one bit for bit."""
     from ipsph.scene import default_scene_path
     from ipsph.simulation import Simulation
+
     over = ["simulation.particle_radius=0.04", f"simulation.method={method}"]
     a = Simulation.from_scene(default_scene_path(), over)
     for _ in range(3):

@@ -1,4 +1,5 @@
 """Fluid lattices, boundary samples, overlap removal and the sampling cache (ipsph.sampling)."""
+
 from __future__ import annotations
 
 import math
@@ -60,11 +61,14 @@ def spacing_stats(points, r):
 
 
 # ----------------------------------------------------------------------------- fluid boxes
-@pytest.mark.parametrize("lo, hi, count", [
-    ((-0.5, 0.0, -0.5), (0.5, 1.0, 0.5), 19**3),        # DamBreakModel block
-    ((0.0, 0.0, 0.0), (0.7, 0.75, 0.7), 13 * 14 * 13),
-    ((-0.5, 0.0, -0.5), (0.5, 2.0, 0.5), 19 * 39 * 19),  # DamBreakModelDragons block (scale 1,2,1)
-])
+@pytest.mark.parametrize(
+    "lo, hi, count",
+    [
+        ((-0.5, 0.0, -0.5), (0.5, 1.0, 0.5), 19**3),  # DamBreakModel block
+        ((0.0, 0.0, 0.0), (0.7, 0.75, 0.7), 13 * 14 * 13),
+        ((-0.5, 0.0, -0.5), (0.5, 2.0, 0.5), 19 * 39 * 19),  # DamBreakModelDragons block (scale 1,2,1)
+    ],
+)
 def test_fluid_box_counts_follow_splishsplash(lo, hi, count):
     spec = fluid_box(lo, hi)
     x = sampling.fluid_positions(spec, R)
@@ -75,8 +79,11 @@ def test_fluid_box_counts_follow_splishsplash(lo, hi, count):
 
 
 def test_fluid_box_scale_and_translate_apply_to_corners():
-    spec = fluid_box((-0.5, 0.0, -0.5), (0.5, 1.0, 0.5),
-                     transform=model.Transform(translate=(-2.45, 0.0, 0.0), scale=(1.0, 2.0, 1.0)))
+    spec = fluid_box(
+        (-0.5, 0.0, -0.5),
+        (0.5, 1.0, 0.5),
+        transform=model.Transform(translate=(-2.45, 0.0, 0.0), scale=(1.0, 2.0, 1.0)),
+    )
     x = sampling.fluid_positions(spec, R)
     assert len(x) == 19 * 39 * 19
     np.testing.assert_allclose(x.min(axis=0), (-2.9, 0.05, -0.45), atol=1e-12)
@@ -162,8 +169,12 @@ def box_coverage(points, lo, hi, r):
 
 
 def test_dambreak_container_unitbox_is_a_box_grid():
-    spec = model.BoundarySpec("tank", "mesh", mesh=MODELS / "UnitBox.obj",
-                              transform=model.Transform(translate=(0.0, 1.5, 0.0), scale=(4.0, 3.0, 1.5)))
+    spec = model.BoundarySpec(
+        "tank",
+        "mesh",
+        mesh=MODELS / "UnitBox.obj",
+        transform=model.Transform(translate=(0.0, 1.5, 0.0), scale=(4.0, 3.0, 1.5)),
+    )
     y = sampling.boundary_positions(spec, R)
     # the grid lies on the box grown by e = 0.1 d (method.md section 1): n = ceil((edge + 2e) / 1.5r)
     # intervals = 107, 81, 41: (108·82·42) − (106·80·40) = 32,752
@@ -204,8 +215,9 @@ def test_rotated_box_boundary_rotates_the_grid():
 @pytest.mark.parametrize("loader, scale, r", [("load_sphere", 0.004, 0.02), ("load_nut", 0.02, 0.02)])
 def test_mesh_boundary_spacing_and_coverage(tmp_path, loader, scale, r):
     path = saved(getattr(examples, loader)(), tmp_path, loader)
-    spec = model.BoundarySpec(loader, "mesh", mesh=path, role=model.Role.OBSTACLE,
-                              transform=model.Transform(scale=(scale,) * 3))
+    spec = model.BoundarySpec(
+        loader, "mesh", mesh=path, role=model.Role.OBSTACLE, transform=model.Transform(scale=(scale,) * 3)
+    )
     y = sampling.boundary_positions(spec, r)
     lo, mean, hi = spacing_stats(y, r)
     # greedy Poisson disk of radius r: nearest neighbour >= r (>= 0.5 r asked), mean ~1.07 r
@@ -232,8 +244,13 @@ def test_mesh_boundary_keeps_sharp_corners(tmp_path):
 
 
 def test_dragon_boundary_is_deterministic_closed_and_covered():
-    spec = model.BoundarySpec("dragon", "mesh", mesh=MODELS / "Dragon_50k.obj", role=model.Role.OBSTACLE,
-                              transform=model.Transform(translate=(1.5, 0.0, -0.75)))
+    spec = model.BoundarySpec(
+        "dragon",
+        "mesh",
+        mesh=MODELS / "Dragon_50k.obj",
+        role=model.Role.OBSTACLE,
+        transform=model.Transform(translate=(1.5, 0.0, -0.75)),
+    )
     t0 = time.perf_counter()
     a = sampling.boundary_positions(spec, R, cache=False)
     t1 = time.perf_counter()
@@ -249,8 +266,10 @@ def test_dragon_boundary_is_deterministic_closed_and_covered():
 # ----------------------------------------------------------------------------- overlaps
 def test_solid_mask_container_and_obstacle(tmp_path):
     path = saved(pv.Sphere(radius=0.2, center=(0.5, 0.5, 0.5)), tmp_path, "ball")
-    walls = [wall_box((0.0, 0.0, 0.0), (1.0, 1.0, 1.0)),
-             model.BoundarySpec("ball", "mesh", mesh=path, role=model.Role.OBSTACLE)]
+    walls = [
+        wall_box((0.0, 0.0, 0.0), (1.0, 1.0, 1.0)),
+        model.BoundarySpec("ball", "mesh", mesh=path, role=model.Role.OBSTACLE),
+    ]
     rng = np.random.default_rng(3)
     p = rng.uniform(-0.2, 1.2, size=(5000, 3))
     keep = sampling.solid_mask(p, walls, R)
@@ -265,8 +284,9 @@ def test_remove_overlaps_counts():
     walls = sampling.boundary_positions(tank, R)
     md = sampling.default_overlap_distance(R)
     # the DamBreakModel block: first layer 0.1 m from the walls, nothing removed
-    block = sampling.fluid_positions(fluid_box((-0.5, 0.0, -0.5), (0.5, 1.0, 0.5),
-                                               transform=model.Transform(translate=(-1.45, 0.05, 0.0))), R)
+    block = sampling.fluid_positions(
+        fluid_box((-0.5, 0.0, -0.5), (0.5, 1.0, 0.5), transform=model.Transform(translate=(-1.45, 0.05, 0.0))), R
+    )
     assert sampling.remove_overlaps(block, walls, md)[1] == 0
     # a block filling the tank corner: the lattice sits exactly d from the walls and stays
     corner = sampling.fluid_positions(fluid_box((-2.0, 0.0, -0.75), (-1.5, 0.5, 0.75)), R)

@@ -1,4 +1,5 @@
 """The TOML scene layer: defaults, strict validation, overrides, round trip, generated docs."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -14,8 +15,17 @@ from ipsph import model
 from ipsph.errors import ConfigError
 from ipsph.model import Method, Role, Scene, Transform
 from ipsph.params import RENAMED
-from ipsph.scene import (PARAMS, apply_overrides, default_scene_path, key_help, lattice_counts,
-                         load_scene, reference_markdown, scene_from_dict, scene_to_dict)
+from ipsph.scene import (
+    PARAMS,
+    apply_overrides,
+    default_scene_path,
+    key_help,
+    lattice_counts,
+    load_scene,
+    reference_markdown,
+    scene_from_dict,
+    scene_to_dict,
+)
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -33,6 +43,7 @@ box = { min = [0, 0, 0], max = [0.5, 0.5, 0.5] }
 
 
 # -- the default scene ---------------------------------------------------------------------------
+
 
 def test_default_scene_is_the_documented_dam_break():
     s = load_scene(default_scene_path())
@@ -60,9 +71,13 @@ def test_every_settable_model_field_has_a_scene_key():
             else:
                 yield prefix + f.name
 
-    for prefix, cls in (("time_step.", model.TimeStepConfig), ("solver.", model.SolverConfig),
-                        ("output.", model.OutputConfig), ("render.", model.RenderConfig),
-                        ("surface.", model.SurfaceConfig)):
+    for prefix, cls in (
+        ("time_step.", model.TimeStepConfig),
+        ("solver.", model.SolverConfig),
+        ("output.", model.OutputConfig),
+        ("render.", model.RenderConfig),
+        ("surface.", model.SurfaceConfig),
+    ):
         for leaf in leaves(cls, prefix):
             assert leaf in targets, f"{leaf} has no scene key"
 
@@ -86,8 +101,9 @@ def test_keys_left_out_take_the_model_defaults(tmp_path):
 
 def test_docs_reference_is_generated_and_current():
     doc = (REPO / "docs" / "scene-reference.md").read_text()
-    assert doc == reference_markdown(), \
+    assert doc == reference_markdown(), (
         "docs/scene-reference.md is stale: run `python -m ipsph.scene > docs/scene-reference.md`"
+    )
     for p in PARAMS:
         assert f"`{p.key}`" in doc or f"`box.{p.key}`" in doc or f"`motion.{p.key}`" in doc
         assert p.doc.replace("|", "\\|") in doc
@@ -102,6 +118,7 @@ def test_key_help_lists_every_settable_key():
 
 # -- errors --------------------------------------------------------------------------------------
 
+
 def test_toml_syntax_error_names_file_line_and_column(tmp_path):
     p = write(tmp_path, "[simulation]\nend_time = 2.0\nmethod = ipsph\n", "bad.toml")
     with pytest.raises(ConfigError) as e:
@@ -111,13 +128,16 @@ def test_toml_syntax_error_names_file_line_and_column(tmp_path):
     assert "\n" not in msg
 
 
-@pytest.mark.parametrize("text, expect", [
-    ("[simulation]\nparticle_radus = 0.02\n", "did you mean 'particle_radius'"),
-    ("particle_radius = 0.02\n", "did you mean 'simulation.particle_radius'"),
-    ("[simulation]\ncfl_factor = 0.5\n", "did you mean 'time_step.cfl_factor'"),
-    ("[simulaton]\nend_time = 1\n", "did you mean 'simulation'"),
-    ("[solver.dfsph]\ndensity_eror_pct = 0.1\n", "did you mean 'density_error_pct'"),
-])
+@pytest.mark.parametrize(
+    "text, expect",
+    [
+        ("[simulation]\nparticle_radus = 0.02\n", "did you mean 'particle_radius'"),
+        ("particle_radius = 0.02\n", "did you mean 'simulation.particle_radius'"),
+        ("[simulation]\ncfl_factor = 0.5\n", "did you mean 'time_step.cfl_factor'"),
+        ("[simulaton]\nend_time = 1\n", "did you mean 'simulation'"),
+        ("[solver.dfsph]\ndensity_eror_pct = 0.1\n", "did you mean 'density_error_pct'"),
+    ],
+)
 def test_unknown_keys_are_refused_with_a_suggestion(tmp_path, text, expect):
     with pytest.raises(ConfigError, match=re.escape(expect)):
         load_scene(write(tmp_path, text + MINIMAL))
@@ -129,11 +149,14 @@ def test_unknown_key_in_a_fluid_names_its_index(tmp_path):
         load_scene(write(tmp_path, text))
 
 
-@pytest.mark.parametrize("line, key, fragment", [
-    ("velocity = [1, 0]", r"fluid\[1\]\.velocity", "expected 3 numbers"),
-    ("velocity = [1, true, 0]", r"fluid\[1\]\.velocity\[1\]", "expected a number"),
-    ("velocity = \"fast\"", r"fluid\[1\]\.velocity", "expected 3 numbers"),
-])
+@pytest.mark.parametrize(
+    "line, key, fragment",
+    [
+        ("velocity = [1, 0]", r"fluid\[1\]\.velocity", "expected 3 numbers"),
+        ("velocity = [1, true, 0]", r"fluid\[1\]\.velocity\[1\]", "expected a number"),
+        ('velocity = "fast"', r"fluid\[1\]\.velocity", "expected 3 numbers"),
+    ],
+)
 def test_wrong_types_name_the_full_key_path(tmp_path, line, key, fragment):
     text = MINIMAL + f"\n[[fluid]]\nbox = {{ min = [1, 0, 0], max = [1.5, 0.5, 0.5] }}\n{line}\n"
     with pytest.raises(ConfigError, match=key + ": " + fragment):
@@ -149,34 +172,45 @@ def test_bools_are_not_numbers_but_ints_are_floats(tmp_path):
     assert s.end_time == 3.0 and isinstance(s.end_time, float)
 
 
-@pytest.mark.parametrize("text, fragment", [
-    ("[simulation]\nparticle_radius = -0.1\n",
-     "simulation.particle_radius: -0.1 m is out of range: allowed 0 < value <= 1"),
-    ("[simulation]\nviscosity = 2\n", "simulation.viscosity: 2 is out of range: allowed 0 <= value <= 1"),
-    ("[render]\nwidth = 4\n", "render.width: 4 px is out of range: allowed 16 <= value <= 16384"),
-    ("[simulation]\nend_time = nan\n", "simulation.end_time: expected a finite number"),
-    ("[time_step]\ndt_min = 0.01\ndt_max = 0.005\n", "time_step.dt_min: 0.01 s is larger than time_step.dt_max"),
-    ("[time_step]\ndt_min = 0.01\n", "larger than time_step.dt_max (auto: 5 ms * r / 0.025 m = 0.005 s)"),
-    ("[solver.ipsph]\nmin_passes = 5\nmax_passes = 3\n", "solver.ipsph.min_passes: 5 is larger than max_passes = 3"),
-    ("[output]\nfields = [\"velocity\", \"vorticity\"]\n", "output.fields[1]: a string ('vorticity') is not one of"),
-    ("[render]\nspeed_range = [2, 1]\n", "render.speed_range: min 2 must be < max 1"),
-])
+@pytest.mark.parametrize(
+    "text, fragment",
+    [
+        (
+            "[simulation]\nparticle_radius = -0.1\n",
+            "simulation.particle_radius: -0.1 m is out of range: allowed 0 < value <= 1",
+        ),
+        ("[simulation]\nviscosity = 2\n", "simulation.viscosity: 2 is out of range: allowed 0 <= value <= 1"),
+        ("[render]\nwidth = 4\n", "render.width: 4 px is out of range: allowed 16 <= value <= 16384"),
+        ("[simulation]\nend_time = nan\n", "simulation.end_time: expected a finite number"),
+        ("[time_step]\ndt_min = 0.01\ndt_max = 0.005\n", "time_step.dt_min: 0.01 s is larger than time_step.dt_max"),
+        ("[time_step]\ndt_min = 0.01\n", "larger than time_step.dt_max (auto: 5 ms * r / 0.025 m = 0.005 s)"),
+        (
+            "[solver.ipsph]\nmin_passes = 5\nmax_passes = 3\n",
+            "solver.ipsph.min_passes: 5 is larger than max_passes = 3",
+        ),
+        ('[output]\nfields = ["velocity", "vorticity"]\n', "output.fields[1]: a string ('vorticity') is not one of"),
+        ("[render]\nspeed_range = [2, 1]\n", "render.speed_range: min 2 must be < max 1"),
+    ],
+)
 def test_out_of_range_values_name_key_and_range(tmp_path, text, fragment):
     with pytest.raises(ConfigError, match=re.escape(fragment)):
         load_scene(write(tmp_path, text + MINIMAL))
 
 
 def test_unknown_method_lists_the_choices(tmp_path):
-    with pytest.raises(ConfigError, match=r"simulation\.method: a string \('sph'\) is not one of "
-                                          r"ipsph, pf, dfsph"):
-        load_scene(write(tmp_path, "[simulation]\nmethod = \"sph\"\n" + MINIMAL))
+    with pytest.raises(
+        ConfigError,
+        match=r"simulation\.method: a string \('sph'\) is not one of "
+        r"ipsph, pf, dfsph",
+    ):
+        load_scene(write(tmp_path, '[simulation]\nmethod = "sph"\n' + MINIMAL))
     with pytest.raises(ConfigError, match="did you mean 'dfsph'"):
-        load_scene(write(tmp_path, "[simulation]\nmethod = \"dfsp\"\n" + MINIMAL))
+        load_scene(write(tmp_path, '[simulation]\nmethod = "dfsp"\n' + MINIMAL))
 
 
 def test_missing_mesh_shows_path_as_given_and_resolved(tmp_path):
     (tmp_path / "scenes").mkdir()
-    p = write(tmp_path / "scenes", "[[fluid]]\nmesh = \"../meshes/bunny.obj\"\n")
+    p = write(tmp_path / "scenes", '[[fluid]]\nmesh = "../meshes/bunny.obj"\n')
     with pytest.raises(ConfigError) as e:
         load_scene(p)
     msg = str(e.value)
@@ -188,24 +222,32 @@ def test_mesh_paths_resolve_against_the_scene_folder(tmp_path):
     (tmp_path / "meshes").mkdir()
     (tmp_path / "meshes" / "bunny.obj").write_text("v 0 0 0\n")
     (tmp_path / "scenes").mkdir()
-    p = write(tmp_path / "scenes", "[[fluid]]\nmesh = \"../meshes/bunny.obj\"\nrotate_deg = 90\n"
-                                   "[[boundary]]\nmesh = \"../meshes/bunny.obj\"\nrole = \"obstacle\"\n")
+    p = write(
+        tmp_path / "scenes",
+        '[[fluid]]\nmesh = "../meshes/bunny.obj"\nrotate_deg = 90\n'
+        '[[boundary]]\nmesh = "../meshes/bunny.obj"\nrole = "obstacle"\n',
+    )
     s = load_scene(p)
     assert s.fluids[0].mesh == (tmp_path / "meshes" / "bunny.obj").resolve()
     assert s.fluids[0].transform.rotate_deg == 90.0
     assert s.boundaries[0].role == Role.OBSTACLE
 
 
-@pytest.mark.parametrize("fluid, fragment", [
-    ("box = { min = [0, 0, 0], max = [0.5, 0.0, 0.5] }", "fluid[0].box: min [0, 0, 0] must be < max"),
-    ("box = { min = [0, 0, 0] }", "fluid[0].box: missing max"),
-    ("box = { min = [0, 0, 0], max = [0.5, 0.5, 0.5] }\nmesh = \"a.obj\"", "give exactly one shape"),
-    ("velocity = [1, 0, 0]", "give exactly one shape"),
-    ("box = { min = [0, 0, 0], max = [0.5, 0.5, 0.5] }\nrotate_deg = 30", "boxes are axis-aligned"),
-    ("box = { min = [0, 0, 0], max = [0.5, 0.05, 0.5] }", "holds no particle at particle_radius 0.025 m"),
-    ("box = { min = [0, 0, 0], max = [0.5, 0.5, 0.5] }\nscale = [1, 0, 1]",
-     "fluid[0].scale[1]: 0 is out of range: allowed 0 < each component"),
-])
+@pytest.mark.parametrize(
+    "fluid, fragment",
+    [
+        ("box = { min = [0, 0, 0], max = [0.5, 0.0, 0.5] }", "fluid[0].box: min [0, 0, 0] must be < max"),
+        ("box = { min = [0, 0, 0] }", "fluid[0].box: missing max"),
+        ('box = { min = [0, 0, 0], max = [0.5, 0.5, 0.5] }\nmesh = "a.obj"', "give exactly one shape"),
+        ("velocity = [1, 0, 0]", "give exactly one shape"),
+        ("box = { min = [0, 0, 0], max = [0.5, 0.5, 0.5] }\nrotate_deg = 30", "boxes are axis-aligned"),
+        ("box = { min = [0, 0, 0], max = [0.5, 0.05, 0.5] }", "holds no particle at particle_radius 0.025 m"),
+        (
+            "box = { min = [0, 0, 0], max = [0.5, 0.5, 0.5] }\nscale = [1, 0, 1]",
+            "fluid[0].scale[1]: 0 is out of range: allowed 0 < each component",
+        ),
+    ],
+)
 def test_bad_fluid_shapes(tmp_path, fluid, fragment):
     with pytest.raises(ConfigError, match=re.escape(fragment)):
         load_scene(write(tmp_path, f"[[fluid]]\n{fluid}\n"))
@@ -216,15 +258,21 @@ def test_scene_needs_a_fluid_and_unique_names(tmp_path):
         load_scene(write(tmp_path, "[simulation]\nend_time = 1.0\n"))
     with pytest.raises(ConfigError, match=r"write \[\[fluid\]\] \(double brackets\)"):
         load_scene(write(tmp_path, "[fluid]\nbox = { min = [0, 0, 0], max = [1, 1, 1] }\n"))
-    two = MINIMAL.replace("[[fluid]]", "[[fluid]]\nname = \"w\"")
+    two = MINIMAL.replace("[[fluid]]", '[[fluid]]\nname = "w"')
     with pytest.raises(ConfigError, match=r"fluid\[1\]\.name: 'w' is already the name of fluid\[0\]"):
-        load_scene(write(tmp_path, two + two.replace("[0, 0, 0]", "[1, 0, 0]")
-                         .replace("[0.5, 0.5, 0.5]", "[1.5, 0.5, 0.5]")))
+        load_scene(
+            write(tmp_path, two + two.replace("[0, 0, 0]", "[1, 0, 0]").replace("[0.5, 0.5, 0.5]", "[1.5, 0.5, 0.5]"))
+        )
 
 
 def test_box_translate_and_scale_are_applied_to_the_corners(tmp_path):
-    s = load_scene(write(tmp_path, "[[fluid]]\nbox = { min = [-0.5, 0, -0.5], max = [0.5, 1, 0.5] }\n"
-                                   "translate = [-2.45, 0, 0]\nscale = [1, 2, 1]\n"))
+    s = load_scene(
+        write(
+            tmp_path,
+            "[[fluid]]\nbox = { min = [-0.5, 0, -0.5], max = [0.5, 1, 0.5] }\n"
+            "translate = [-2.45, 0, 0]\nscale = [1, 2, 1]\n",
+        )
+    )
     f = s.fluids[0]
     assert f.transform == Transform()
     assert f.box_min == pytest.approx((-2.95, 0.0, -0.5), abs=1e-12)
@@ -240,11 +288,22 @@ def test_file_level_errors(tmp_path):
 
 # -- overrides -----------------------------------------------------------------------------------
 
+
 def test_overrides_set_sections_and_entities(tmp_path):
-    s = load_scene(default_scene_path(), [
-        "simulation.end_time=1.5", "simulation.method=dfsph", "fluid.0.velocity=[1, 0, 0]",
-        "fluid[0].name=water", "output.folder=runs/a", "time_step.dt_max=0.002",
-        "solver.dfsph.density_error_pct=0.05", "render.enabled=false", "boundary.0.role=obstacle"])
+    s = load_scene(
+        default_scene_path(),
+        [
+            "simulation.end_time=1.5",
+            "simulation.method=dfsph",
+            "fluid.0.velocity=[1, 0, 0]",
+            "fluid[0].name=water",
+            "output.folder=runs/a",
+            "time_step.dt_max=0.002",
+            "solver.dfsph.density_error_pct=0.05",
+            "render.enabled=false",
+            "boundary.0.role=obstacle",
+        ],
+    )
     assert s.end_time == 1.5 and s.method == Method.DFSPH
     assert s.fluids[0].velocity == (1.0, 0.0, 0.0) and s.fluids[0].name == "water"
     assert s.output.folder == Path("runs/a")  # bare words parse as strings
@@ -266,14 +325,17 @@ def test_override_values_are_validated_like_the_file():
         load_scene(default_scene_path(), ["simulation.end_time=-1"])
 
 
-@pytest.mark.parametrize("item, fragment", [
-    ("simulation.end_tim=1", "did you mean 'simulation.end_time'"),
-    ("end_time=1", "did you mean 'simulation.end_time'"),
-    ("fluid.0.velocty=[1,0,0]", "did you mean 'fluid.0.velocity'"),
-    ("fluid.3.velocity=[1,0,0]", "no fluid number 3 in the scene (1 [[fluid]] table: indices 0..0)"),
-    ("fluid.velocity=[1,0,0]", "address a [[fluid]] entry by index"),
-    ("simulation.end_time", "expected KEY=VALUE"),
-])
+@pytest.mark.parametrize(
+    "item, fragment",
+    [
+        ("simulation.end_tim=1", "did you mean 'simulation.end_time'"),
+        ("end_time=1", "did you mean 'simulation.end_time'"),
+        ("fluid.0.velocty=[1,0,0]", "did you mean 'fluid.0.velocity'"),
+        ("fluid.3.velocity=[1,0,0]", "no fluid number 3 in the scene (1 [[fluid]] table: indices 0..0)"),
+        ("fluid.velocity=[1,0,0]", "address a [[fluid]] entry by index"),
+        ("simulation.end_time", "expected KEY=VALUE"),
+    ],
+)
 def test_bad_overrides(item, fragment):
     with pytest.raises(ConfigError, match=re.escape(fragment)):
         load_scene(default_scene_path(), [item])
@@ -287,6 +349,7 @@ def test_apply_overrides_leaves_the_input_alone():
 
 # -- round trip ----------------------------------------------------------------------------------
 
+
 def test_round_trip_default_scene():
     s = load_scene(default_scene_path())
     d = scene_to_dict(s)
@@ -296,7 +359,9 @@ def test_round_trip_default_scene():
 
 def test_round_trip_with_meshes_and_optional_values(tmp_path):
     (tmp_path / "m.obj").write_text("v 0 0 0\n")
-    p = write(tmp_path, """
+    p = write(
+        tmp_path,
+        """
 name = "custom"
 [simulation]
 method = "pf"
@@ -326,7 +391,8 @@ box = { min = [1, 0, 0], max = [1.5, 0.5, 0.5] }
 [[boundary]]
 mesh = "m.obj"
 role = "obstacle"
-""")
+""",
+    )
     s = load_scene(p)
     assert s.name == "custom"
     d = json.loads(json.dumps(scene_to_dict(s)))

@@ -1,5 +1,6 @@
 """SPlisHSPlasH JSON scenes: the 7 stock scenes import with the right lattices, methods and
 solver settings; unsupported keys are warned about, unsupported physics refused."""
+
 from __future__ import annotations
 
 import json
@@ -111,15 +112,17 @@ def test_v200_flat_layout():
 
 
 def test_overrides_apply_to_imported_scenes():
-    s = load_scene(ANCHORS / "Scenes/DamBreakModel.json",
-                   ["simulation.method=ipsph", "fluid.0.velocity=[1, 0, 0]",
-                    "simulation.end_time=1.0"])
+    s = load_scene(
+        ANCHORS / "Scenes/DamBreakModel.json",
+        ["simulation.method=ipsph", "fluid.0.velocity=[1, 0, 0]", "simulation.end_time=1.0"],
+    )
     assert s.method == Method.IPSPH and s.fluids[0].velocity == (1.0, 0.0, 0.0)
     assert s.end_time == 1.0 and s.solver.dfsph.density_error_pct == 0.05
     assert s.warnings and "boundaryHandlingMethod" in s.warnings[0]
 
 
 # -- synthetic scenes ----------------------------------------------------------------------------
+
 
 def scene_file(tmp_path: Path, data: dict, name: str = "s.json") -> Path:
     (tmp_path / "box.obj").write_text("v 0 0 0\n")  # the scene layer only checks existence
@@ -138,22 +141,35 @@ def test_json_syntax_error_has_line_and_column(tmp_path):
         load_scene(p)
 
 
-@pytest.mark.parametrize("data, fragment", [
-    ({"Configuration": {"simulationMethod": 2}, "FluidBlocks": [BLOCK]},
-     "Configuration.simulationMethod: 2 (PBF) is not supported"),
-    ({"FluidBlocks": [{**BLOCK, "denseMode": 1}]}, "FluidBlocks[0].denseMode: 1 is not supported"),
-    ({"FluidBlocks": [BLOCK], "RigidBodies": [{"geometryFile": "box.obj", "isDynamic": True, "isWall": True}]},
-     "RigidBodies[0].isDynamic: a dynamic body cannot be a wall"),
-    ({"FluidBlocks": [BLOCK], "RigidBodies": [{"geometryFile": "box.obj", "isDynamic": True, "density": 0}]},
-     "RigidBodies[0].density: 0: a dynamic body needs a density > 0"),
-    ({"FluidBlocks": [BLOCK], "Emitters": [{"type": 2}]}, "Emitters[0].type: 2 is not an emitter type"),
-    ({"FluidModels": [{"particleFile": "bunny.bgeo"}]}, "is a partio particle file"),
-    ({"Configuration": {"particleRadius": "small"}, "FluidBlocks": [BLOCK]},
-     "Configuration.particleRadius: expected a number"),
-    ({"FluidBlocks": [BLOCK], "Materials": [{"id": "A", "density0": 1000},
-                                            {"id": "B", "density0": 500}]}, "multiphase"),
-    ({"Configuration": {"particleRadius": 0.025}}, "no FluidBlocks, FluidModels or Emitters"),
-])
+@pytest.mark.parametrize(
+    "data, fragment",
+    [
+        (
+            {"Configuration": {"simulationMethod": 2}, "FluidBlocks": [BLOCK]},
+            "Configuration.simulationMethod: 2 (PBF) is not supported",
+        ),
+        ({"FluidBlocks": [{**BLOCK, "denseMode": 1}]}, "FluidBlocks[0].denseMode: 1 is not supported"),
+        (
+            {"FluidBlocks": [BLOCK], "RigidBodies": [{"geometryFile": "box.obj", "isDynamic": True, "isWall": True}]},
+            "RigidBodies[0].isDynamic: a dynamic body cannot be a wall",
+        ),
+        (
+            {"FluidBlocks": [BLOCK], "RigidBodies": [{"geometryFile": "box.obj", "isDynamic": True, "density": 0}]},
+            "RigidBodies[0].density: 0: a dynamic body needs a density > 0",
+        ),
+        ({"FluidBlocks": [BLOCK], "Emitters": [{"type": 2}]}, "Emitters[0].type: 2 is not an emitter type"),
+        ({"FluidModels": [{"particleFile": "bunny.bgeo"}]}, "is a partio particle file"),
+        (
+            {"Configuration": {"particleRadius": "small"}, "FluidBlocks": [BLOCK]},
+            "Configuration.particleRadius: expected a number",
+        ),
+        (
+            {"FluidBlocks": [BLOCK], "Materials": [{"id": "A", "density0": 1000}, {"id": "B", "density0": 500}]},
+            "multiphase",
+        ),
+        ({"Configuration": {"particleRadius": 0.025}}, "no FluidBlocks, FluidModels or Emitters"),
+    ],
+)
 def test_unsupported_physics_is_refused(tmp_path, data, fragment):
     with pytest.raises(ConfigError, match=re.escape(fragment)):
         load_scene(scene_file(tmp_path, data))
@@ -161,15 +177,28 @@ def test_unsupported_physics_is_refused(tmp_path, data, fragment):
 
 def test_fluid_models_rigid_bodies_and_fixed_step(tmp_path):
     data = {
-        "Configuration": {"particleRadius": 0.02, "simulationMethod": 5, "cflMethod": 0,
-                          "timeStepSize": 0.002, "stopAt": 3.5, "dataExportFPS": 50,
-                          "kernel": 1},
+        "Configuration": {
+            "particleRadius": 0.02,
+            "simulationMethod": 5,
+            "cflMethod": 0,
+            "timeStepSize": 0.002,
+            "stopAt": 3.5,
+            "dataExportFPS": 50,
+            "kernel": 1,
+        },
         "Materials": [{"id": "Fluid", "viscosityMethod": 0, "viscosity": 0.5}],
-        "FluidModels": [{"particleFile": "box.obj", "translation": [1, 2, 3], "scale": 0.5,
-                         "rotationAxis": [0, 1, 0], "rotationAngle": math.pi,
-                         "initialVelocity": [0, -1, 0], "resolutionSDF": [20, 20, 20]}],
-        "RigidBodies": [{"geometryFile": "box.obj", "isWall": False, "mapInvert": True},
-                        {"geometryFile": "box.obj"}],
+        "FluidModels": [
+            {
+                "particleFile": "box.obj",
+                "translation": [1, 2, 3],
+                "scale": 0.5,
+                "rotationAxis": [0, 1, 0],
+                "rotationAngle": math.pi,
+                "initialVelocity": [0, -1, 0],
+                "resolutionSDF": [20, 20, 20],
+            }
+        ],
+        "RigidBodies": [{"geometryFile": "box.obj", "isWall": False, "mapInvert": True}, {"geometryFile": "box.obj"}],
     }
     s = load_scene(scene_file(tmp_path, data))
     assert s.method == Method.PF and s.end_time == 3.5 and s.output.fps == 50.0
@@ -198,9 +227,12 @@ def test_missing_rigid_body_mesh_shows_both_paths(tmp_path):
 
 
 def test_standard_viscosity_is_imported_as_the_same_model(tmp_path):
-    data = {"FluidBlocks": [BLOCK],
-            "Materials": [{"id": "Fluid", "viscosityMethod": 1,
-                           "Standard viscosity": {"viscosity": 0.02, "viscosityBoundary": 0.5}}]}
+    data = {
+        "FluidBlocks": [BLOCK],
+        "Materials": [
+            {"id": "Fluid", "viscosityMethod": 1, "Standard viscosity": {"viscosity": 0.02, "viscosityBoundary": 0.5}}
+        ],
+    }
     s = load_scene(scene_file(tmp_path, data))
     assert (s.standard_viscosity, s.viscosity) == (0.02, 0.0)
     w = s.warnings[0]
@@ -213,19 +245,25 @@ def test_standard_viscosity_is_imported_as_the_same_model(tmp_path):
 
 
 CLOSED_CUBE = "".join(f"v {x} {y} {z}\n" for z in (0, 1) for y in (0, 1) for x in (0, 1)) + "".join(
-    f"f {a + 1} {b + 1} {c + 1}\n" for q in ((0, 2, 3, 1), (4, 5, 7, 6), (0, 1, 5, 4), (2, 6, 7, 3), (0, 4, 6, 2),
-                                            (1, 3, 7, 5)) for a, b, c in ((q[0], q[1], q[2]), (q[0], q[2], q[3])))
+    f"f {a + 1} {b + 1} {c + 1}\n"
+    for q in ((0, 2, 3, 1), (4, 5, 7, 6), (0, 1, 5, 4), (2, 6, 7, 3), (0, 4, 6, 2), (1, 3, 7, 5))
+    for a, b, c in ((q[0], q[1], q[2]), (q[0], q[2], q[3]))
+)
 
 
 def test_dynamic_rigid_body_is_imported_with_its_density(tmp_path):
     """isDynamic bodies become two-way coupled rigid bodies (issue 19) of the scene's density, or
     SPlisHSPlasH's default 1000 kg/m^3 with a note; the mesh is the body's closed surface."""
-    data = {"FluidBlocks": [BLOCK],
-            "RigidBodies": [{"geometryFile": "box.obj", "isDynamic": True, "density": 400},
-                            {"geometryFile": "box.obj", "isDynamic": True, "translation": [2, 0, 0]},
-                            {"geometryFile": "box.obj", "isWall": True, "scale": [4, 4, 4]}]}
+    data = {
+        "FluidBlocks": [BLOCK],
+        "RigidBodies": [
+            {"geometryFile": "box.obj", "isDynamic": True, "density": 400},
+            {"geometryFile": "box.obj", "isDynamic": True, "translation": [2, 0, 0]},
+            {"geometryFile": "box.obj", "isWall": True, "scale": [4, 4, 4]},
+        ],
+    }
     path = scene_file(tmp_path, data)
-    (tmp_path / "box.obj").write_text(CLOSED_CUBE)   # a dynamic body's mesh is checked closed
+    (tmp_path / "box.obj").write_text(CLOSED_CUBE)  # a dynamic body's mesh is checked closed
     s = load_scene(path)
     light, default, tank = s.boundaries
     assert light.dynamic and light.density == 400.0 and light.role == Role.OBSTACLE

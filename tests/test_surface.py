@@ -1,6 +1,7 @@
 """Surface meshes (issue 20): the tank at rest's surface is a closed, manifold, outward-oriented
 mesh holding the fluid's volume; a dam break's surfaces stay in the tank and are listed in run.pvd;
 `ipsph surface OUT` fills in, converts and skips; a failed frame is one warning and is listed."""
+
 from __future__ import annotations
 
 import subprocess
@@ -25,8 +26,9 @@ VOLUME_TOL = 0.03
 
 
 def ipsph(*args, timeout=600):
-    return subprocess.run([sys.executable, "-m", "ipsph", *map(str, args)], capture_output=True, text=True,
-                          timeout=timeout)
+    return subprocess.run(
+        [sys.executable, "-m", "ipsph", *map(str, args)], capture_output=True, text=True, timeout=timeout
+    )
 
 
 def lattice(n, r=R, origin=(0.0, 0.0, 0.0)):
@@ -90,7 +92,7 @@ def test_smoothing_and_cube_size_do_what_the_reference_says():
     smooth = reconstruct(x, None, R, 1000.0, SurfaceConfig(mesh_smoothing_iterations=25))
     fine = reconstruct(x, None, R, 1000.0, SurfaceConfig(cube_size=0.5))
     assert enclosed_volume(smooth) < enclosed_volume(base)  # each smoothing pass rounds edges a little more
-    assert len(fine.triangles) > 3 * len(base.triangles)   # half the cell: about 4x the triangles
+    assert len(fine.triangles) > 3 * len(base.triangles)  # half the cell: about 4x the triangles
     check_closed_manifold_oriented(fine)
     assert base.velocity is None
 
@@ -98,6 +100,7 @@ def test_smoothing_and_cube_size_do_what_the_reference_says():
 def test_surface_settings_are_validated_like_every_scene_key():
     from ipsph.errors import ConfigError
     from ipsph.scene import default_scene_path, load_scene, surface_config
+
     scene = load_scene(default_scene_path(), ["render.mode=surface", "surface.cube_size=0.5"])
     assert scene.render.mode == "surface" and scene.surface.cube_size == 0.5 and not scene.output.surface
     with pytest.raises(ConfigError, match="particles, surface"):
@@ -127,6 +130,7 @@ def test_dam_break_surfaces_stay_in_the_tank_and_are_listed_in_run_pvd(dam_break
     import pyvista as pv
 
     from ipsph.io.provenance import read_run_json
+
     series = PvdSeries.load(dam_break / "run.pvd")
     n = len(series.frames)
     assert n >= 8  # 0, 0.08, ..., 0.56 s
@@ -153,6 +157,7 @@ def test_dam_break_surfaces_stay_in_the_tank_and_are_listed_in_run_pvd(dam_break
 
 def test_ipsph_surface_skips_fills_in_and_converts(dam_break, tmp_path):
     import shutil
+
     out = tmp_path / "copy"
     shutil.copytree(dam_break, out)
     (out / surface_file(3)).unlink()
@@ -165,6 +170,7 @@ def test_ipsph_surface_skips_fills_in_and_converts(dam_break, tmp_path):
     res = ipsph("surface", out, "--format", "ply")
     assert res.returncode == 0, res.stderr
     import meshio
+
     ply = meshio.read(out / surface_file(5, "ply"))
     vtp = read_vtp(out / surface_file(5))
     assert len(ply.points) == len(vtp.vertices) and {"nx", "vx", "speed"} <= set(ply.point_data)
@@ -176,13 +182,15 @@ def test_a_failed_frame_is_one_warning_and_is_listed(tmp_path):
     out = tmp_path / "out"
     (out / "frames").mkdir(parents=True)
     from ipsph.io.provenance import write_run_json
+
     series = PvdSeries(out / "run.pvd", None)
     x = lattice((6, 6, 6))
     for k, pts in enumerate((x, np.zeros((0, 3)), x + 0.01)):
         write_particles(out / frame_file(k), pts.astype(np.float32), {"velocity": np.zeros_like(pts)}, 0.1 * k)
         series.add(0.1 * k, frame_file(k))
-    write_run_json(out / "run.json", {"status": "completed", "particle_radius": R,
-                                      "scene": {"simulation": {"density0": 1000.0}}})
+    write_run_json(
+        out / "run.json", {"status": "completed", "particle_radius": R, "scene": {"simulation": {"density0": 1000.0}}}
+    )
     res = ipsph("surface", out)
     assert res.returncode == 0, res.stderr
     warnings = [ln for ln in res.stderr.splitlines() if "warning" in ln]
@@ -193,6 +201,7 @@ def test_a_failed_frame_is_one_warning_and_is_listed(tmp_path):
 
 def test_the_surface_process_reports_failed_frames_and_keeps_going(tmp_path):
     from ipsph.surface_worker import BackgroundSurfacer
+
     lines = []
     s = BackgroundSurfacer()
     s.configure(tmp_path, R, 1000.0, SurfaceConfig())
@@ -228,6 +237,7 @@ def test_pvd_lists_surfaces_as_part_2_and_resume_drops_the_later_ones(tmp_path):
 @pytest.fixture(scope="module")
 def gl():
     from ipsph.render import gl_available
+
     ok, reason = gl_available()
     if not ok:
         pytest.skip(reason)
@@ -239,12 +249,18 @@ def test_surface_renders_show_the_mesh_with_the_walls(gl, dam_break, tmp_path):
     from ipsph.model import RenderConfig
     from ipsph.render import FrameRenderer, read_surface, render_output
     from ipsph.io.provenance import read_run_json
+
     small = {"width": 320, "height": 180}
-    png, = render_output(dam_break, mode="surface", frames=slice(-1, None), config_overrides=small)
+    (png,) = render_output(dam_break, mode="surface", frames=slice(-1, None), config_overrides=small)
     img = iio.imread(png)[..., :3].astype(int)
     run = read_run_json(dam_break / "run.json")
-    with FrameRenderer(RenderConfig(**small), run["domain_bounds"], R, tuple(run["render"]["speed_range"])
-                       if run.get("render") else (0.0, 4.0), read_surface(dam_break / "boundary_surface.vtp")) as r:
+    with FrameRenderer(
+        RenderConfig(**small),
+        run["domain_bounds"],
+        R,
+        tuple(run["render"]["speed_range"]) if run.get("render") else (0.0, 4.0),
+        read_surface(dam_break / "boundary_surface.vtp"),
+    ) as r:
         empty = r.surface_image(None, time=0.56).astype(int)  # walls, bar and labels only
     changed = np.abs(img - empty).sum(axis=2) > 30
     assert changed.mean() > 0.02  # the surface covers part of the tank
@@ -254,15 +270,30 @@ def test_surface_renders_show_the_mesh_with_the_walls(gl, dam_break, tmp_path):
 
 def test_surface_mode_renders_during_a_run(gl, tmp_path):
     out = tmp_path / "out"
-    res = ipsph("run", "-o", out, "--end-time", 0.08, "--set", "simulation.particle_radius=0.04",
-                "--set", "render.mode=surface", "--set", "render.width=320", "--set", "render.height=180", "--quiet")
+    res = ipsph(
+        "run",
+        "-o",
+        out,
+        "--end-time",
+        0.08,
+        "--set",
+        "simulation.particle_radius=0.04",
+        "--set",
+        "render.mode=surface",
+        "--set",
+        "render.width=320",
+        "--set",
+        "render.height=180",
+        "--quiet",
+    )
     assert res.returncode == 0, res.stderr
     assert len(list((out / "surfaces").glob("*.vtp"))) == 3 == len(list((out / "renders").glob("*.png")))
 
 
 def test_bench_surface_sizes_reports_seconds_and_cpu():
     from ipsph.benchmark.surface_cost import sizes_table, surface_seconds
+
     row = surface_seconds(3000, threads=1, repeats=1, log=lambda m: None)
-    assert row["particles"] == 14 ** 3 and row["triangles"] > 0
+    assert row["particles"] == 14**3 and row["triangles"] > 0
     assert row["seconds_median"] > 0 and row["cpu_seconds_median"] > 0
     assert "2,744" in sizes_table([row], markdown=True)

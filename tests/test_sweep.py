@@ -6,6 +6,7 @@ and the others run; a worker SIGKILLed mid-member has its member finished from t
 dying child wrote; Ctrl-C stops every member with a checkpoint and `--resume` finishes exactly the
 unfinished ones; a completed sweep reruns nothing.
 """
+
 from __future__ import annotations
 
 import csv
@@ -45,8 +46,12 @@ scene = "dam.toml"
 "simulation.viscosity" = [0.01, 0.02]
 "simulation.density0" = [1000.0, 1010.0]
 """
-NAMES = ["method-ipsph_viscosity-0.01_density0-1000.0", "method-ipsph_viscosity-0.02_density0-1010.0",
-         "method-dfsph_viscosity-0.01_density0-1000.0", "method-dfsph_viscosity-0.02_density0-1010.0"]
+NAMES = [
+    "method-ipsph_viscosity-0.01_density0-1000.0",
+    "method-ipsph_viscosity-0.02_density0-1010.0",
+    "method-dfsph_viscosity-0.01_density0-1000.0",
+    "method-dfsph_viscosity-0.02_density0-1010.0",
+]
 
 
 def test_extra_is_installed():
@@ -152,8 +157,7 @@ def test_resume_reruns_only_what_is_missing(swept, sweep_file, references, tmp_p
     assert cli.main(["sweep", str(sweep_file), "-o", str(out), "--quiet"]) == 2
     err = capsys.readouterr().err
     assert "unfinished sweep (3 of 4 members completed); pass --resume to run the other 1" in err, err
-    recs = ipsph.sweep(sweep_file, out, resume=True, workers=2, threads_per_worker=1,
-                       dashboard_address="127.0.0.1:0")
+    recs = ipsph.sweep(sweep_file, out, resume=True, workers=2, threads_per_worker=1, dashboard_address="127.0.0.1:0")
     assert all(r["status"] == "completed" for r in recs)
     assert before == {n: (out / n / RUN_JSON).stat().st_mtime_ns for n in NAMES if n != gone}
     assert_same_frames(references[gone], out / gone)
@@ -167,10 +171,16 @@ def test_resume_reruns_only_what_is_missing(swept, sweep_file, references, tmp_p
 def test_failing_member_does_not_stop_the_others(sweep_file, tmp_path):
     f = sweep_file.with_name("failing.toml")
     # the middle member leaves the tank at 900 m/s within a few steps: ipsph run exits 3
-    f.write_text('scene = "dam.toml"\n[set]\n"simulation.particle_radius" = 0.04\n"simulation.end_time" = 0.12\n'
-                 '"render.enabled" = false\n[zip]\n"fluid.0.velocity" = [[0, 0, 0], [900, 0, 0], [0, 0, -1]]\n')
-    code, recs = engine.run_sweep(f, engine.SweepOptions(out=tmp_path / "out", workers=1, threads_per_worker=1,
-                                                          progress=False, dashboard_address="127.0.0.1:0"))
+    f.write_text(
+        'scene = "dam.toml"\n[set]\n"simulation.particle_radius" = 0.04\n"simulation.end_time" = 0.12\n'
+        '"render.enabled" = false\n[zip]\n"fluid.0.velocity" = [[0, 0, 0], [900, 0, 0], [0, 0, -1]]\n'
+    )
+    code, recs = engine.run_sweep(
+        f,
+        engine.SweepOptions(
+            out=tmp_path / "out", workers=1, threads_per_worker=1, progress=False, dashboard_address="127.0.0.1:0"
+        ),
+    )
     assert code == engine.EXIT_MEMBERS_FAILED
     assert [r["status"] for r in recs] == ["completed", "failed", "completed"], recs
     bad = recs[1]
@@ -197,12 +207,31 @@ def test_local_cluster_listens_on_loopback_only():
 
 # -- faults in a separate `ipsph sweep` process ------------------------------------------------------
 def start_sweep(sweep_file: Path, out: Path, *extra: str) -> subprocess.Popen:
-    cmd = [sys.executable, "-m", "ipsph", "sweep", str(sweep_file), "-o", str(out), "--workers", "2",
-           "--threads-per-worker", "1", "--dashboard-address", "127.0.0.1:0", *extra]
+    cmd = [
+        sys.executable,
+        "-m",
+        "ipsph",
+        "sweep",
+        str(sweep_file),
+        "-o",
+        str(out),
+        "--workers",
+        "2",
+        "--threads-per-worker",
+        "1",
+        "--dashboard-address",
+        "127.0.0.1:0",
+        *extra,
+    ]
     # its own process group, like a shell job: a terminal's Ctrl-C goes to the whole group
     # (and SIGINT at its default: a shell starts background jobs, like this test run may be, with it ignored)
-    return subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True, start_new_session=True,
-                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    return subprocess.Popen(
+        cmd,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
 
 
 def wait_mid_run(out: Path, proc: subprocess.Popen, running: int, timeout: float = 180.0) -> list[str]:
@@ -289,11 +318,15 @@ def test_joins_an_existing_scheduler_and_uses_its_workers_threads(sweep_file, tm
     """--scheduler: a cluster the sweep did not start (here a 1-worker x 2-thread LocalCluster whose
     worker declares no ipsph_member resource): each member gets the worker's 2 threads, one at a time."""
     from distributed import LocalCluster
+
     f = sweep_file.with_name("two.toml")
-    f.write_text('scene = "dam.toml"\n[set]\n"simulation.particle_radius" = 0.04\n"simulation.end_time" = 0.08\n'
-                 '"render.enabled" = false\n[grid]\n"simulation.method" = ["pf", "dfsph"]\n')
-    with LocalCluster(n_workers=1, threads_per_worker=2, host="127.0.0.1", dashboard_address=None,
-                      memory_limit=0) as cluster:
+    f.write_text(
+        'scene = "dam.toml"\n[set]\n"simulation.particle_radius" = 0.04\n"simulation.end_time" = 0.08\n'
+        '"render.enabled" = false\n[grid]\n"simulation.method" = ["pf", "dfsph"]\n'
+    )
+    with LocalCluster(
+        n_workers=1, threads_per_worker=2, host="127.0.0.1", dashboard_address=None, memory_limit=0
+    ) as cluster:
         out = tmp_path / "out"
         with pytest.raises(ValueError, match="--workers / --threads-per-worker size a LocalCluster"):
             ipsph.sweep(f, out, scheduler=cluster.scheduler_address, workers=2)
@@ -322,8 +355,9 @@ def test_shared_folder_check_names_a_worker_that_cannot_see_out(tmp_path):
     engine.check_shared_folder(FakeClient({"tcp://a:1": "real", "tcp://b:1": "real"}), tmp_path)
     assert list(tmp_path.iterdir()) == []  # the probe files are gone
     with pytest.raises(ValueError) as e:
-        engine.check_shared_folder(FakeClient({"tcp://a:1": "real", "tcp://b:1": "FileNotFoundError: No such file"}),
-                                   tmp_path)
+        engine.check_shared_folder(
+            FakeClient({"tcp://a:1": "real", "tcp://b:1": "FileNotFoundError: No such file"}), tmp_path
+        )
     msg = str(e.value)
     assert "1 of 2 workers cannot use" in msg and "tcp://b:1" in msg and "shares" in msg and "\n" not in msg
     assert member.probe_folder(str(tmp_path / "missing"), "t").startswith("FileNotFoundError")

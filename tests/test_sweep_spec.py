@@ -1,6 +1,7 @@
 """Sweep files (issue 21) without a cluster: expansion of [set] / [grid] / [zip] into members, their
 readable folder names, the scene path relative to the sweep file, and bad sweeps exiting 2 in one line
 that names the member and the key before any cluster starts or any folder is created."""
+
 from __future__ import annotations
 
 import shutil
@@ -27,7 +28,9 @@ def write(path: Path, text: str) -> Path:
 
 
 def test_grid_times_zip_in_file_order(scene_dir):
-    f = write(scene_dir / "study.toml", """
+    f = write(
+        scene_dir / "study.toml",
+        """
 scene = "dam.toml"
 [set]
 "simulation.end_time" = 0.5
@@ -38,7 +41,8 @@ particle_radius = [0.04, 0.03]
 [zip]
 "simulation.viscosity" = [0.01, 0.02]
 "fluid.0.velocity" = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]
-""")
+""",
+    )
     sw = spec.load_sweep(f)
     assert sw.scene == (scene_dir / "dam.toml").resolve()  # relative to the sweep file, not the cwd
     assert len(sw.members) == 3 * 2 * 2
@@ -54,12 +58,18 @@ particle_radius = [0.04, 0.03]
 
 
 def test_shared_leaf_names_use_the_full_key(scene_dir):
-    f = write(scene_dir / "s.toml", 'scene = "dam.toml"\n[grid]\n"solver.pf.passes" = [2, 3]\n'
-                                    '"solver.ipsph.max_passes" = [50]\n"solver.ipsph.min_passes" = [1]\n')
+    f = write(
+        scene_dir / "s.toml",
+        'scene = "dam.toml"\n[grid]\n"solver.pf.passes" = [2, 3]\n'
+        '"solver.ipsph.max_passes" = [50]\n"solver.ipsph.min_passes" = [1]\n',
+    )
     names = [m.name for m in spec.load_sweep(f).members]
     assert names == ["passes-2_max_passes-50_min_passes-1", "passes-3_max_passes-50_min_passes-1"]
-    f2 = write(scene_dir / "t.toml", 'scene = "dam.toml"\n[grid]\n"simulation.viscosity" = [0.01]\n'
-                                     '"solver.pf.stiffness" = [1e4]\n"solver.dfsph.density_error_pct" = [0.05]\n')
+    f2 = write(
+        scene_dir / "t.toml",
+        'scene = "dam.toml"\n[grid]\n"simulation.viscosity" = [0.01]\n'
+        '"solver.pf.stiffness" = [1e4]\n"solver.dfsph.density_error_pct" = [0.05]\n',
+    )
     assert spec.load_sweep(f2).members[0].name == "viscosity-0.01_stiffness-10000.0_density_error_pct-0.05"
 
 
@@ -71,13 +81,16 @@ def test_no_varied_keys_is_one_member(scene_dir):
 BAD = [
     # (sweep body after scene = ..., what the one error line must contain)
     ('[grid]\n"simulation.methd" = ["ipsph"]\n', ["member methd-ipsph", "simulation.methd", "did you mean"]),
-    ('[grid]\n"simulation.particle_radius" = [0.04, -0.01]\n',
-     ["member particle_radius--0.01", "particle_radius"]),
-    ('[grid]\n"simulation.particle_radius" = [0.04, 0.2]\n', ["member particle_radius-0.2", "fluid[0].box",
-                                                              "particle_radius 0.2 m"]),
+    ('[grid]\n"simulation.particle_radius" = [0.04, -0.01]\n', ["member particle_radius--0.01", "particle_radius"]),
+    (
+        '[grid]\n"simulation.particle_radius" = [0.04, 0.2]\n',
+        ["member particle_radius-0.2", "fluid[0].box", "particle_radius 0.2 m"],
+    ),
     ('[zip]\n"simulation.viscosity" = [0.01, 0.02]\n"simulation.method" = ["pf"]\n', ["[zip]", "equal lengths"]),
-    ('[set]\n"simulation.method" = "pf"\n[grid]\n"simulation.method" = ["pf"]\n', ["simulation.method",
-                                                                                 "[set] and [grid]"]),
+    (
+        '[set]\n"simulation.method" = "pf"\n[grid]\n"simulation.method" = ["pf"]\n',
+        ["simulation.method", "[set] and [grid]"],
+    ),
     ('[grid]\n"simulation.method" = "pf"\n', ["simulation.method", "non-empty list"]),
     ('[gird]\n"simulation.method" = ["pf"]\n', ["unknown key 'gird'"]),
 ]
@@ -87,6 +100,7 @@ BAD = [
 def test_bad_sweep_exits_2_in_one_line_before_any_cluster(scene_dir, tmp_path, capsys, monkeypatch, body, expect):
     def no_cluster(*a, **k):
         raise AssertionError("a cluster was started for a bad sweep")
+
     monkeypatch.setattr(engine, "start_local_cluster", no_cluster)
     f = write(scene_dir / "bad.toml", 'scene = "dam.toml"\n' + body)
     out = tmp_path / "out"
@@ -118,6 +132,7 @@ def test_local_layout_from_the_machine(monkeypatch):
 
 def test_docs_summary_table_is_generated_from_the_columns():
     from ipsph.ensemble import records
+
     page = (Path(__file__).resolve().parents[1] / "docs" / "sweeps.md").read_text(encoding="utf-8")
     table = page.split("<!-- summary-columns: generated -->\n", 1)[1].split("<!-- /summary-columns -->", 1)[0]
     assert table == records.summary_columns_markdown(), "regenerate it with `python -m ipsph.ensemble`"
@@ -127,14 +142,27 @@ def test_bench_sweep_table_leaves_loaded_repeats_out():
     from ipsph.benchmark.sweep_bench import table
 
     def row(wall, seq, loaded):
-        return {"sweep_wall": wall, "sequential_wall": seq, "ratio": seq / wall, "makespan": wall - 4.0,
-                "overhead_per_member": 1.0, "dispatch_per_member": 0.05, "loaded": loaded,
-                "sweep_others_cores": 0.1, "sequential_others_cores": 0.1,
-                "timings": {"cluster_start": 3.0, "members": wall - 3.5, "close": 0.5}}
-    result = {"end_time": 1.0, "members": ["a", "b", "c", "d"],
-              "rows": [row(10.0, 20.0, False), row(12.0, 18.0, False), row(100.0, 20.0, True)]}
+        return {
+            "sweep_wall": wall,
+            "sequential_wall": seq,
+            "ratio": seq / wall,
+            "makespan": wall - 4.0,
+            "overhead_per_member": 1.0,
+            "dispatch_per_member": 0.05,
+            "loaded": loaded,
+            "sweep_others_cores": 0.1,
+            "sequential_others_cores": 0.1,
+            "timings": {"cluster_start": 3.0, "members": wall - 3.5, "close": 0.5},
+        }
+
+    result = {
+        "end_time": 1.0,
+        "members": ["a", "b", "c", "d"],
+        "rows": [row(10.0, 20.0, False), row(12.0, 18.0, False), row(100.0, 20.0, True)],
+    }
     text = table(result, markdown=False, max_load=0.5)
     import re
+
     lines = dict(re.split(r"\s{2,}", ln.strip(), maxsplit=1) for ln in text.splitlines()[1:])
     assert float(lines["sweep wall, 2 workers x 1 thread [s]"]) == 11.0  # the loaded 100 s repeat is left out
     assert float(lines["ratio sequential / sweep"]) == pytest.approx((2.0 + 1.5) / 2, abs=0.005)

@@ -5,6 +5,7 @@
 is Monaghan's SPH estimate of nu dt (lap v + 2 grad div v). Brute-force neighbour lists, so the
 test does not depend on the neighbour search.
 """
+
 import numpy as np
 import pytest
 
@@ -35,13 +36,29 @@ def lattice_block(n1, support_in_d):
     cf = near.sum(1).astype(np.int32)
     nf = np.zeros((len(x), cf.max()), np.int32)
     for i in range(len(x)):
-        nf[i, :cf[i]] = np.nonzero(near[i])[0]
-    mf = RHO0 * D ** 3
+        nf[i, : cf[i]] = np.nonzero(near[i])[0]
+    mf = RHO0 * D**3
     n = len(x)
     rho, alpha, lam, err, gb = np.empty(n), np.empty(n), np.zeros(n), np.empty(n), np.empty((n, 3))
     no_walls = np.zeros((n, 1), np.int32), np.zeros(n, np.int32)
-    density_factor_lambda(x, mf, np.zeros((1, 3)), np.zeros(1), nf, cf, *no_walls, h, RHO0, rho, alpha,
-                          lam, err, np.empty(n, np.int64), gb, NO_PAIR_CACHE)
+    density_factor_lambda(
+        x,
+        mf,
+        np.zeros((1, 3)),
+        np.zeros(1),
+        nf,
+        cf,
+        *no_walls,
+        h,
+        RHO0,
+        rho,
+        alpha,
+        lam,
+        err,
+        np.empty(n, np.int64),
+        gb,
+        NO_PAIR_CACHE,
+    )
     inner = np.all((x > x.min(0) + h) & (x < x.max(0) - h), axis=1)
     return x, mf, rho, gb, lam, nf, cf, h, inner
 
@@ -49,8 +66,24 @@ def lattice_block(n1, support_in_d):
 def viscous_change(block, v, zeta=0.0, nu=NU):
     x, mf, rho, gb, lam, nf, cf, h, _ = block
     out = np.empty_like(v)
-    xsph(x, v, mf, rho, gb, np.zeros(len(x)), lam, nf, cf, h, zeta, nu * DT, out, np.empty(len(x)), NO_DISPLACEMENT,
-         NO_PAIR_CACHE)
+    xsph(
+        x,
+        v,
+        mf,
+        rho,
+        gb,
+        np.zeros(len(x)),
+        lam,
+        nf,
+        cf,
+        h,
+        zeta,
+        nu * DT,
+        out,
+        np.empty(len(x)),
+        NO_DISPLACEMENT,
+        NO_PAIR_CACHE,
+    )
     return out - v
 
 
@@ -84,7 +117,7 @@ def test_rigid_motion_is_untouched_and_other_motion_loses_energy():
     rng = np.random.default_rng(3)
     v = rng.normal(size=x.shape)
     dv = viscous_change(block, v, nu=0.1)
-    assert np.sum((v + dv) ** 2) < np.sum(v ** 2)  # viscosity dissipates kinetic energy
+    assert np.sum((v + dv) ** 2) < np.sum(v**2)  # viscosity dissipates kinetic energy
     # nu = 0 leaves the velocities as XSPH alone sets them (zeta = 0: unchanged)
     assert np.array_equal(viscous_change(block, v, nu=0.0), np.zeros_like(v))
 
@@ -97,18 +130,27 @@ THICK_NU = 0.5
 def test_thick_fluid_steps_within_the_viscous_limit_and_stays_calm():
     from ipsph.scene import scene_from_dict
     from ipsph.simulation import VISCOUS_STEP, Simulation
-    scene = scene_from_dict({
-        "simulation": {"method": "ipsph", "particle_radius": R, "end_time": 0.05, "viscosity": 0.0,
-                       "standard_viscosity": THICK_NU, "settle": "off"},   # the block's own first steps
-        "time_step": {"dt_max": 0.005},
-        "fluid": [{"name": "block", "box": {"min": [0.05, 0.05, 0.05], "max": [0.35, 0.35, 0.35]}}],
-        "boundary": [{"name": "box", "role": "container", "box": {"min": [0, 0, 0], "max": [0.4, 0.6, 0.4]}}],
-    }, name="thick")
+
+    scene = scene_from_dict(
+        {
+            "simulation": {
+                "method": "ipsph",
+                "particle_radius": R,
+                "end_time": 0.05,
+                "viscosity": 0.0,
+                "standard_viscosity": THICK_NU,
+                "settle": "off",
+            },  # the block's own first steps
+            "time_step": {"dt_max": 0.005},
+            "fluid": [{"name": "block", "box": {"min": [0.05, 0.05, 0.05], "max": [0.35, 0.35, 0.35]}}],
+            "boundary": [{"name": "box", "role": "container", "box": {"min": [0, 0, 0], "max": [0.4, 0.6, 0.4]}}],
+        },
+        name="thick",
+    )
     sim = Simulation.from_scene(scene)
-    limit = sim.support ** 2 / (VISCOUS_STEP * THICK_NU)
+    limit = sim.support**2 / (VISCOUS_STEP * THICK_NU)
     dts, speeds = [], []
-    sim.run(end_time=0.05, fps=100,
-            on_step=lambda s: (dts.append(s.dt), speeds.append(np.abs(sim.velocities).max())))
+    sim.run(end_time=0.05, fps=100, on_step=lambda s: (dts.append(s.dt), speeds.append(np.abs(sim.velocities).max())))
     assert max(dts) <= limit * (1 + 1e-12)
     # falling 5 cm at most for 0.05 s: anything near 1 m/s is the explicit viscosity blowing up
     assert max(speeds) < 1.0, max(speeds)

@@ -6,6 +6,7 @@ Adding one: subclass `base.Backend` in a module of this package, launch the bodi
 `bodies` for every particle, and add it to `BACKENDS` (imported on first use, so a backend's
 dependencies load only when it is chosen).
 """
+
 from __future__ import annotations
 
 import importlib

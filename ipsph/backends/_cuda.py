@@ -13,6 +13,7 @@ device function, with the same source), on the simulator its pure-Python twin, g
 arrays behind the simulator's wrappers (interpreting is faster there than compiling each body for
 the CPU, and the source that runs is the same).
 """
+
 from __future__ import annotations
 
 import importlib.util
@@ -87,5 +88,6 @@ def device_function(f):
 
     def call(*args):
         return twin(*[_plain(a) for a in args])
+
     call.__name__ = f.py_func.__name__
     return call

@@ -12,6 +12,7 @@ index i from the work item of particle i only (no atomics); reductions in a fixe
 same inputs give the same bits whatever the thread count. Pass arguments mirror the launchers in
 `cpu_passes`; `nl` is the current `NeighbourLists`, `walls` the `Boundary`, `dens` a `Densities`.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
@@ -27,6 +28,7 @@ class Densities:
     count n_nbrs, and the walls' gradient sum gb_i = sum_b m_b grad W_ib that every later pass
     at the same positions takes the walls from; gvb_i = sum_b m_b v_b . grad W_ib, the moving
     walls' part of D rho_i/Dt (`wall_rate`; stays 0 with static walls)."""
+
     rho: Array
     alpha: Array
     lam: Array
@@ -37,8 +39,15 @@ class Densities:
 
     @classmethod
     def allocate(cls, be: "Backend", n: int) -> "Densities":
-        return cls(be.zeros(n), be.zeros(n), be.zeros(n), be.zeros(n), be.zeros(n, dtype="int32"),
-                   be.zeros(n, (3,)), be.zeros(n))
+        return cls(
+            be.zeros(n),
+            be.zeros(n),
+            be.zeros(n),
+            be.zeros(n),
+            be.zeros(n, dtype="int32"),
+            be.zeros(n, (3,)),
+            be.zeros(n),
+        )
 
     def arrays(self) -> tuple:
         return tuple(getattr(self, f.name) for f in fields(self))
@@ -48,49 +57,108 @@ class Backend:
     """The interface (every method raises here; `CPUBackend` implements it)."""
 
     name = ""
-    NO_PAIRS: Array = None          # the empty pair cache: a pass given it neither fills nor reads it
-    NO_DISPLACEMENT: Array = None   # viscosity(..., disp=NO_DISPLACEMENT): no PF displacement
+    NO_PAIRS: Array = None  # the empty pair cache: a pass given it neither fills nor reads it
+    NO_DISPLACEMENT: Array = None  # viscosity(..., disp=NO_DISPLACEMENT): no PF displacement
 
     # -- arrays -------------------------------------------------------------------------------------
-    def zeros(self, n: int, shape=(), dtype="float64") -> Array: raise NotImplementedError
-    def empty(self, n: int, shape=(), dtype="float64") -> Array: raise NotImplementedError
-    def asarray(self, host, dtype="float64") -> Array: raise NotImplementedError      # host -> backend
-    def to_host(self, a: Array): raise NotImplementedError                           # backend -> numpy
-    def pair_buffer(self, n: int, k: int) -> Array: raise NotImplementedError         # (n, 3, k)
+    def zeros(self, n: int, shape=(), dtype="float64") -> Array:
+        raise NotImplementedError
+
+    def empty(self, n: int, shape=(), dtype="float64") -> Array:
+        raise NotImplementedError
+
+    def asarray(self, host, dtype="float64") -> Array:
+        raise NotImplementedError  # host -> backend
+
+    def to_host(self, a: Array):
+        raise NotImplementedError  # backend -> numpy
+
+    def pair_buffer(self, n: int, k: int) -> Array:
+        raise NotImplementedError  # (n, 3, k)
 
     # -- vector operations --------------------------------------------------------------------------
-    def fill(self, a, value: float) -> None: raise NotImplementedError
-    def copy(self, dst, src) -> None: raise NotImplementedError
-    def axpy(self, y, alpha: float, x) -> None: raise NotImplementedError  # y += alpha x
-    def scale(self, a, c: float) -> None: raise NotImplementedError        # a *= c
-    def take(self, a, perm) -> Array: raise NotImplementedError            # new[i] = a[perm[i]]; len(perm) <= len(a)
-    def concat(self, a, b) -> Array: raise NotImplementedError             # a new array: a's rows, then b's
-    def head(self, a, n: int) -> Array: raise NotImplementedError          # a view of the first n rows (no copy)
-    def untake(self, a, perm) -> None: raise NotImplementedError           # a[perm[i]] = old a[i], in place
-    def mean(self, a) -> float: raise NotImplementedError
-    def mean_positive(self, a) -> float: raise NotImplementedError         # mean of max(a, 0)
-    def max(self, a) -> float: raise NotImplementedError
-    def speed_energy(self, v, m) -> tuple[float, float]: raise NotImplementedError
-    def first_unhealthy(self, x, v, lo, hi) -> int: raise NotImplementedError
-    def pf_pressure(self, out, lam, rho0: float, dt: float) -> None: raise NotImplementedError
-    def stiffness_pressure(self, out, k, rho, add: bool = False) -> None: raise NotImplementedError
+    def fill(self, a, value: float) -> None:
+        raise NotImplementedError
+
+    def copy(self, dst, src) -> None:
+        raise NotImplementedError
+
+    def axpy(self, y, alpha: float, x) -> None:
+        raise NotImplementedError  # y += alpha x
+
+    def scale(self, a, c: float) -> None:
+        raise NotImplementedError  # a *= c
+
+    def take(self, a, perm) -> Array:
+        raise NotImplementedError  # new[i] = a[perm[i]]; len(perm) <= len(a)
+
+    def concat(self, a, b) -> Array:
+        raise NotImplementedError  # a new array: a's rows, then b's
+
+    def head(self, a, n: int) -> Array:
+        raise NotImplementedError  # a view of the first n rows (no copy)
+
+    def untake(self, a, perm) -> None:
+        raise NotImplementedError  # a[perm[i]] = old a[i], in place
+
+    def mean(self, a) -> float:
+        raise NotImplementedError
+
+    def mean_positive(self, a) -> float:
+        raise NotImplementedError  # mean of max(a, 0)
+
+    def max(self, a) -> float:
+        raise NotImplementedError
+
+    def speed_energy(self, v, m) -> tuple[float, float]:
+        raise NotImplementedError
+
+    def first_unhealthy(self, x, v, lo, hi) -> int:
+        raise NotImplementedError
+
+    def pf_pressure(self, out, lam, rho0: float, dt: float) -> None:
+        raise NotImplementedError
+
+    def stiffness_pressure(self, out, k, rho, add: bool = False) -> None:
+        raise NotImplementedError
 
     # -- per-particle passes (bodies.*_at) ----------------------------------------------------------
-    def densities(self, x, mf, walls, nl, h, rho0, out: Densities, pairs) -> Array: raise NotImplementedError
-    def divergence_residual(self, x, v, mf, dens, nl, pairs, h, dt, drho, k) -> None: raise NotImplementedError
-    def density_residual(self, x, v, mf, dens, nl, pairs, h, rho0, dt, err, k) -> None: raise NotImplementedError
-    def apply_stiffness(self, x, mf, dens, nl, pairs, h, k, dt, v, k_total) -> None: raise NotImplementedError
+    def densities(self, x, mf, walls, nl, h, rho0, out: Densities, pairs) -> Array:
+        raise NotImplementedError
+
+    def divergence_residual(self, x, v, mf, dens, nl, pairs, h, dt, drho, k) -> None:
+        raise NotImplementedError
+
+    def density_residual(self, x, v, mf, dens, nl, pairs, h, rho0, dt, err, k) -> None:
+        raise NotImplementedError
+
+    def apply_stiffness(self, x, mf, dens, nl, pairs, h, k, dt, v, k_total) -> None:
+        raise NotImplementedError
+
     def viscosity(self, x, v, mf, dens, lam, nl, h, zeta, nu_dt, v_out, drho, disp, pairs) -> Array:
         raise NotImplementedError
-    def pf_global(self, x, s, mf, dens, nl, h, rho0, a, x_out, lam_sum) -> None: raise NotImplementedError
-    def wall_rate(self, x, walls, nl, h, dens) -> None: raise NotImplementedError  # dens.gvb (walls.v: moving walls)
-    def advance(self, x, v, dt, g, x_old) -> None: raise NotImplementedError
-    def displacement_velocity(self, x, x_old, dt, v) -> None: raise NotImplementedError
-    def accelerate(self, v, dt, g) -> None: raise NotImplementedError
-    def warm_stiffness(self, k_total, scale, rate, n_nbrs, min_nbrs, warm) -> None: raise NotImplementedError
+
+    def pf_global(self, x, s, mf, dens, nl, h, rho0, a, x_out, lam_sum) -> None:
+        raise NotImplementedError
+
+    def wall_rate(self, x, walls, nl, h, dens) -> None:
+        raise NotImplementedError  # dens.gvb (walls.v: moving walls)
+
+    def advance(self, x, v, dt, g, x_old) -> None:
+        raise NotImplementedError
+
+    def displacement_velocity(self, x, x_old, dt, v) -> None:
+        raise NotImplementedError
+
+    def accelerate(self, v, dt, g) -> None:
+        raise NotImplementedError
+
+    def warm_stiffness(self, k_total, scale, rate, n_nbrs, min_nbrs, warm) -> None:
+        raise NotImplementedError
 
     # -- neighbour search ---------------------------------------------------------------------------
-    def neighbour_search(self, support: float, boundary): raise NotImplementedError
+    def neighbour_search(self, support: float, boundary):
+        raise NotImplementedError
 
     # -- timing -------------------------------------------------------------------------------------
     def synchronize(self) -> None:

@@ -18,6 +18,7 @@ Why two stages per particle: the second loop has no indirection, so LLVM turns i
 code (the kernel's sqrt, division and polynomial on 4 neighbours at once), faster than one
 scalar loop that does both (measured: docs/performance.md, "Measured design choices").
 """
+
 import math
 
 from numba import njit
@@ -88,9 +89,9 @@ def _density_sums(n, buf, h, rho_self, keep_f):
     rho starts from rho_self; with `keep_f` (a constant at each call site) f = m_k g(r_ik) is
     also left in buf[C2]."""
     rho_w = rho_self
-    g0 = g1 = g2 = 0.0   # sum_k f_k x_ik
-    b0 = b1 = b2 = 0.0   # its walls' part
-    s2 = nn = 0.0        # sum over fluid of |f_k x_ik|^2; neighbours within H
+    g0 = g1 = g2 = 0.0  # sum_k f_k x_ik
+    b0 = b1 = b2 = 0.0  # its walls' part
+    s2 = nn = 0.0  # sum over fluid of |f_k x_ik|^2; neighbours within H
     for k in range(n):
         d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
         r2 = d0 * d0 + d1 * d1 + d2 * d2
@@ -117,10 +118,10 @@ def _density_sums(n, buf, h, rho_self, keep_f):
 def _viscosity_sums(i, n_f, buf, h, eps, mf, standard, fill, pair_grad):
     """viscosity_at's neighbour loop; with `fill` (a constant at each call site) it also
     stores pair_grad[i, :, k] = mf grad W_ij."""
-    a0 = a1 = a2 = 0.0   # XSPH: sum_j (1/rho_j) v_ij W_ij
-    s0 = s1 = s2 = 0.0   # Standard viscosity: sum_j (1/rho_j) (v_ij . x_ij) / (r^2 + eps) grad W_ij
-    p0 = p1 = p2 = 0.0   # PF displacement: sum_j (lam_i + lam_j) grad W_ij
-    dr = 0.0             # sum_j v_ij . grad W_ij
+    a0 = a1 = a2 = 0.0  # XSPH: sum_j (1/rho_j) v_ij W_ij
+    s0 = s1 = s2 = 0.0  # Standard viscosity: sum_j (1/rho_j) (v_ij . x_ij) / (r^2 + eps) grad W_ij
+    p0 = p1 = p2 = 0.0  # PF displacement: sum_j (lam_i + lam_j) grad W_ij
+    dr = 0.0  # sum_j v_ij . grad W_ij
     for k in range(n_f):
         d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
         r2 = d0 * d0 + d1 * d1 + d2 * d2
@@ -153,19 +154,18 @@ def _viscosity_sums(i, n_f, buf, h, eps, mf, standard, fill, pair_grad):
 
 # -- the bodies ----------------------------------------------------------------------------------
 @njit(inline="always", fastmath=FAST)
-def density_at(i, x, mf, xb, mb, nf, cf, nb, cb, h, rho0, w0, fill, buf, rho, alpha, lam, err, n_nbrs, gb,
-               pair_grad):
+def density_at(i, x, mf, xb, mb, nf, cf, nb, cb, h, rho0, w0, fill, buf, rho, alpha, lam, err, n_nbrs, gb, pair_grad):
     """Density, DFSPH factor, PF multiplier, density error and wall gradient of particle i:
 
-        rho_i   = mf W(0) + sum_j mf W_ij + sum_b m_b W_ib           (w0 = W(0))
-        gb_i    = sum_b m_b grad W_ib     (the walls' part: fixed while positions are, so the
-                                           pressure solves and the viscosity pass reuse it)
-        g_i     = sum_j mf grad W_ij + gb_i
-        alpha_i = 1 / max(|g_i|^2 + sum_j |mf grad W_ij|^2, 1e-5)           [BK17 eq. 9]
-        C_i     = max(rho_i / rho0 - 1, 0)                                  [WKB16, unilateral]
-        lam_i   = -C_i / (sum_k |G_ik|^2 + 1e-6),  sum_k |G_ik|^2 = (|g_i|^2 + sum_j |mf grad W_ij|^2) / rho0^2
-        err_i   = C_i;  n_nbrs_i = |{j : r_ij < H}| + |{b : r_ib < H}|
-        pair_grad[i, :, k] = mf grad W_ij   (only with `fill`)
+    rho_i   = mf W(0) + sum_j mf W_ij + sum_b m_b W_ib           (w0 = W(0))
+    gb_i    = sum_b m_b grad W_ib     (the walls' part: fixed while positions are, so the
+                                       pressure solves and the viscosity pass reuse it)
+    g_i     = sum_j mf grad W_ij + gb_i
+    alpha_i = 1 / max(|g_i|^2 + sum_j |mf grad W_ij|^2, 1e-5)           [BK17 eq. 9]
+    C_i     = max(rho_i / rho0 - 1, 0)                                  [WKB16, unilateral]
+    lam_i   = -C_i / (sum_k |G_ik|^2 + 1e-6),  sum_k |G_ik|^2 = (|g_i|^2 + sum_j |mf grad W_ij|^2) / rho0^2
+    err_i   = C_i;  n_nbrs_i = |{j : r_ij < H}| + |{b : r_ib < H}|
+    pair_grad[i, :, k] = mf grad W_ij   (only with `fill`)
     """
     n_f, n_b = _gather_x(i, x, xb, nf, cf, nb, cb, buf)
     for k in range(n_f):
@@ -272,8 +272,30 @@ def stiffness_at(i, x, mf, gb, nf, cf, pair_grad, cached, h, k, dt, buf, v, k_to
 
 
 @njit(inline="always", fastmath=FAST)
-def viscosity_at(i, x, v, mf, rho, gb, gvb, lam, nf, cf, h, zeta, nu_dt, eps, standard, with_disp, fill, buf,
-                 v_out, drho, disp, pair_grad):
+def viscosity_at(
+    i,
+    x,
+    v,
+    mf,
+    rho,
+    gb,
+    gvb,
+    lam,
+    nf,
+    cf,
+    h,
+    zeta,
+    nu_dt,
+    eps,
+    standard,
+    with_disp,
+    fill,
+    buf,
+    v_out,
+    drho,
+    disp,
+    pair_grad,
+):
     """The viscosity pass for particle i: XSPH filter [SB12] and SPlisHSPlasH's "Standard"
     viscosity, explicit:
 
@@ -298,11 +320,9 @@ def viscosity_at(i, x, v, mf, rho, gb, gvb, lam, nf, cf, h, zeta, nu_dt, eps, st
     vi0, vi1, vi2 = v[i, 0], v[i, 1], v[i, 2]
     if fill:  # two copies of the loop, one with the cache's stores (a runtime test inside
         #       the loop stops LLVM vectorising it)
-        a0, a1, a2, s0, s1, s2, p0, p1, p2, dr = _viscosity_sums(i, n_f, buf, h, eps, mf, standard,
-                                                                 True, pair_grad)
+        a0, a1, a2, s0, s1, s2, p0, p1, p2, dr = _viscosity_sums(i, n_f, buf, h, eps, mf, standard, True, pair_grad)
     else:
-        a0, a1, a2, s0, s1, s2, p0, p1, p2, dr = _viscosity_sums(i, n_f, buf, h, eps, mf, standard,
-                                                                 False, pair_grad)
+        a0, a1, a2, s0, s1, s2, p0, p1, p2, dr = _viscosity_sums(i, n_f, buf, h, eps, mf, standard, False, pair_grad)
     drho[i] = mf * dr + vi0 * gb[i, 0] + vi1 * gb[i, 1] + vi2 * gb[i, 2] - gvb[i]
     zm = zeta * mf
     nm = 10.0 * nu_dt * mf

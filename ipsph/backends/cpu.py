@@ -1,4 +1,5 @@
 """The CPU backend: numpy arrays, Numba `prange` launchers (`cpu_passes`), serial reductions."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -16,8 +17,10 @@ class CPUBackend(Backend):
     def __init__(self, precision: str = "float64", device: int = 0):
         if precision != "float64":
             # the CPU passes compute in float64 and are compiled (and cached) for float64 arrays
-            raise ConfigError(f"simulation.precision = {precision!r} needs simulation.backend = \"cuda\": "
-                              f"the CPU backend runs in float64")
+            raise ConfigError(
+                f'simulation.precision = {precision!r} needs simulation.backend = "cuda": '
+                f"the CPU backend runs in float64"
+            )
         self.precision = precision
 
     # -- arrays -------------------------------------------------------------------------------------
@@ -87,23 +90,59 @@ class CPUBackend(Backend):
 
     # -- per-particle passes ------------------------------------------------------------------------
     def densities(self, x, mf, walls, nl, h, rho0, out: Densities, pairs):
-        P.density_factor_lambda(x, mf, walls.x, walls.m, nl.fluid, nl.fluid_count, nl.boundary, nl.boundary_count,
-                                h, rho0, out.rho, out.alpha, out.lam, out.err, out.n_nbrs, out.gb, pairs)
+        P.density_factor_lambda(
+            x,
+            mf,
+            walls.x,
+            walls.m,
+            nl.fluid,
+            nl.fluid_count,
+            nl.boundary,
+            nl.boundary_count,
+            h,
+            rho0,
+            out.rho,
+            out.alpha,
+            out.lam,
+            out.err,
+            out.n_nbrs,
+            out.gb,
+            pairs,
+        )
         return pairs
 
     def divergence_residual(self, x, v, mf, dens, nl, pairs, h, dt, drho, k):
-        P.divergence_residual(x, v, mf, dens.gb, dens.gvb, nl.fluid, nl.fluid_count, pairs, h, dens.alpha, dens.n_nbrs, dt,
-                              drho, k)
+        P.divergence_residual(
+            x, v, mf, dens.gb, dens.gvb, nl.fluid, nl.fluid_count, pairs, h, dens.alpha, dens.n_nbrs, dt, drho, k
+        )
 
     def density_residual(self, x, v, mf, dens, nl, pairs, h, rho0, dt, err, k):
-        P.density_residual(x, v, mf, dens.gb, dens.gvb, nl.fluid, nl.fluid_count, pairs, h, dens.rho, dens.alpha, rho0, dt,
-                           err, k)
+        P.density_residual(
+            x, v, mf, dens.gb, dens.gvb, nl.fluid, nl.fluid_count, pairs, h, dens.rho, dens.alpha, rho0, dt, err, k
+        )
 
     def apply_stiffness(self, x, mf, dens, nl, pairs, h, k, dt, v, k_total):
         P.apply_stiffness(x, mf, dens.gb, nl.fluid, nl.fluid_count, pairs, h, k, dt, v, k_total)
 
     def viscosity(self, x, v, mf, dens, lam, nl, h, zeta, nu_dt, v_out, drho, disp, pairs):
-        P.xsph(x, v, mf, dens.rho, dens.gb, dens.gvb, lam, nl.fluid, nl.fluid_count, h, zeta, nu_dt, v_out, drho, disp, pairs)
+        P.xsph(
+            x,
+            v,
+            mf,
+            dens.rho,
+            dens.gb,
+            dens.gvb,
+            lam,
+            nl.fluid,
+            nl.fluid_count,
+            h,
+            zeta,
+            nu_dt,
+            v_out,
+            drho,
+            disp,
+            pairs,
+        )
         return pairs
 
     def wall_rate(self, x, walls, nl, h, dens):
@@ -127,4 +166,5 @@ class CPUBackend(Backend):
     # -- neighbour search ---------------------------------------------------------------------------
     def neighbour_search(self, support, boundary):
         from ..neighbours import NeighbourSearch
+
         return NeighbourSearch(support, boundary)

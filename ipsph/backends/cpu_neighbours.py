@@ -2,6 +2,7 @@
 (a prefix sum over cells: the layout a device search shares), the row-walk gather of fluid pairs,
 the walls' per-cell candidates and their gather. `ipsph.neighbours.NeighbourSearch` drives them.
 """
+
 import numpy as np
 from numba import njit, prange
 

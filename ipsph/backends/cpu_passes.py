@@ -11,6 +11,7 @@ Also here: the serial reductions (fixed order: the same bits whatever the thread
 element-wise updates a step needs (one loop each instead of numpy temporaries, whose broadcast of a
 (3,) vector over (n, 3) costs more than the arithmetic: docs/performance.md).
 """
+
 import os
 
 import numpy as np
@@ -18,15 +19,28 @@ from numba import njit, prange
 
 from .. import kernels
 from . import bodies
-from .bodies import (DENSITY_ROWS, FAST, PF_GLOBAL_ROWS, RATE_ROWS, STIFFNESS_ROWS, VISCOSITY_ROWS,
-                     WALL_RATE_ROWS, density_at, density_residual_at, divergence_residual_at, pf_global_at,
-                     stiffness_at, viscosity_at, wall_rate_at)
+from .bodies import (
+    DENSITY_ROWS,
+    FAST,
+    PF_GLOBAL_ROWS,
+    RATE_ROWS,
+    STIFFNESS_ROWS,
+    VISCOSITY_ROWS,
+    WALL_RATE_ROWS,
+    density_at,
+    density_residual_at,
+    divergence_residual_at,
+    pf_global_at,
+    stiffness_at,
+    viscosity_at,
+    wall_rate_at,
+)
 from ..kernels import w
 
 CHUNKS = 64  # blocks of particles per pass, each with its own scratch buffer
 
 NO_DISPLACEMENT = np.zeros((0, 3))  # xsph(..., disp=NO_DISPLACEMENT): skip the PF displacement
-EVERY_PARTICLE = np.zeros(0)        # warm_stiffness(..., rate=EVERY_PARTICLE): no mask
+EVERY_PARTICLE = np.zeros(0)  # warm_stiffness(..., rate=EVERY_PARTICLE): no mask
 
 # The pair cache G[i, :, k] = mf grad W_ij (float64, the layout of the fluid lists: (n, 3, K)).
 # The pressure solves run at fixed positions, so the pass that last visits the pairs at those
@@ -56,8 +70,7 @@ def _chunk(c, n_chunks, n):
 
 # -- per-particle passes ---------------------------------------------------------------------------
 @njit(parallel=True, fastmath=FAST, cache=True)
-def density_factor_lambda(x, mf, xb, mb, nf, cf, nb, cb, h, rho0, rho, alpha, lam, err, n_nbrs, gb,
-                          pair_grad):
+def density_factor_lambda(x, mf, xb, mb, nf, cf, nb, cb, h, rho0, rho, alpha, lam, err, n_nbrs, gb, pair_grad):
     """bodies.density_at for every particle; fills the pair cache if it has a row per particle."""
     fill = pair_grad.shape[0] == x.shape[0]
     w0 = w(0.0, h)
@@ -65,8 +78,29 @@ def density_factor_lambda(x, mf, xb, mb, nf, cf, nb, cb, h, rho0, rho, alpha, la
     for c in prange(bufs.shape[0]):
         lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
         for i in range(lo, hi):
-            density_at(i, x, mf, xb, mb, nf, cf, nb, cb, h, rho0, w0, fill, bufs[c], rho, alpha, lam, err, n_nbrs,
-                       gb, pair_grad)
+            density_at(
+                i,
+                x,
+                mf,
+                xb,
+                mb,
+                nf,
+                cf,
+                nb,
+                cb,
+                h,
+                rho0,
+                w0,
+                fill,
+                bufs[c],
+                rho,
+                alpha,
+                lam,
+                err,
+                n_nbrs,
+                gb,
+                pair_grad,
+            )
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)
@@ -76,8 +110,25 @@ def divergence_residual(x, v, mf, gb, gvb, nf, cf, pair_grad, h, alpha, n_nbrs, 
     for c in prange(bufs.shape[0]):
         lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
         for i in range(lo, hi):
-            divergence_residual_at(i, x, v, mf, gb, gvb, nf, cf, pair_grad, pair_grad.shape[0] == x.shape[0], h, alpha,
-                                   n_nbrs, dt, bufs[c], drho, k)
+            divergence_residual_at(
+                i,
+                x,
+                v,
+                mf,
+                gb,
+                gvb,
+                nf,
+                cf,
+                pair_grad,
+                pair_grad.shape[0] == x.shape[0],
+                h,
+                alpha,
+                n_nbrs,
+                dt,
+                bufs[c],
+                drho,
+                k,
+            )
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)
@@ -87,8 +138,26 @@ def density_residual(x, v, mf, gb, gvb, nf, cf, pair_grad, h, rho, alpha, rho0, 
     for c in prange(bufs.shape[0]):
         lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
         for i in range(lo, hi):
-            density_residual_at(i, x, v, mf, gb, gvb, nf, cf, pair_grad, pair_grad.shape[0] == x.shape[0], h, rho, alpha,
-                                rho0, dt, bufs[c], rho_err, k)
+            density_residual_at(
+                i,
+                x,
+                v,
+                mf,
+                gb,
+                gvb,
+                nf,
+                cf,
+                pair_grad,
+                pair_grad.shape[0] == x.shape[0],
+                h,
+                rho,
+                alpha,
+                rho0,
+                dt,
+                bufs[c],
+                rho_err,
+                k,
+            )
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)
@@ -98,8 +167,9 @@ def apply_stiffness(x, mf, gb, nf, cf, pair_grad, h, k, dt, v, k_total):
     for c in prange(bufs.shape[0]):
         lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
         for i in range(lo, hi):
-            stiffness_at(i, x, mf, gb, nf, cf, pair_grad, pair_grad.shape[0] == x.shape[0], h, k, dt, bufs[c], v,
-                         k_total)
+            stiffness_at(
+                i, x, mf, gb, nf, cf, pair_grad, pair_grad.shape[0] == x.shape[0], h, k, dt, bufs[c], v, k_total
+            )
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)
@@ -114,8 +184,30 @@ def xsph(x, v, mf, rho, gb, gvb, lam, nf, cf, h, zeta, nu_dt, v_out, drho, disp,
     for c in prange(bufs.shape[0]):
         lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
         for i in range(lo, hi):
-            viscosity_at(i, x, v, mf, rho, gb, gvb, lam, nf, cf, h, zeta, nu_dt, eps, standard, with_disp, fill,
-                         bufs[c], v_out, drho, disp, pair_grad)
+            viscosity_at(
+                i,
+                x,
+                v,
+                mf,
+                rho,
+                gb,
+                gvb,
+                lam,
+                nf,
+                cf,
+                h,
+                zeta,
+                nu_dt,
+                eps,
+                standard,
+                with_disp,
+                fill,
+                bufs[c],
+                v_out,
+                drho,
+                disp,
+                pair_grad,
+            )
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)
@@ -227,8 +319,15 @@ def _depend_on_inlined_sources() -> None:
     files = (__file__, bodies.__file__, kernels.__file__)
     stats = [os.stat(f) for f in files]
     stamp = (max(s.st_mtime for s in stats), sum(s.st_size for s in stats))
-    for d in (density_factor_lambda, divergence_residual, density_residual, apply_stiffness, xsph, pf_global,
-              wall_rate):
+    for d in (
+        density_factor_lambda,
+        divergence_residual,
+        density_residual,
+        apply_stiffness,
+        xsph,
+        pf_global,
+        wall_rate,
+    ):
         cache_file = getattr(getattr(d, "_cache", None), "_cache_file", None)
         if cache_file is not None and hasattr(cache_file, "_source_stamp"):
             cache_file._source_stamp = stamp

@@ -12,6 +12,7 @@ is float64 either way (their scalars are float64), and integer arrays keep their
 Without numba-cuda, a driver or the device, construction raises ConfigError naming what is
 missing before anything is allocated; NUMBA_ENABLE_CUDASIM=1 runs it on numba-cuda's simulator.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -34,6 +35,7 @@ class CUDABackend(Backend):
             raise ConfigError(f"--backend cuda: {why}")
         _cuda.select(device)
         from . import cuda_passes as P
+
         self.P = P
         self.precision = precision
         self.device = device
@@ -63,9 +65,11 @@ class CUDABackend(Backend):
             mem = self.memory()
             have = f" ({mem[0] / 2**30:.1f} of {mem[1] / 2**30:.1f} GiB free)" if mem else ""
             size = int(np.prod(shape)) * np.dtype(dtype).itemsize
-            raise ConfigError(f"the GPU (device {self.device}) is out of memory allocating {size / 2**20:.0f} MiB "
-                              f"for {shape[0]:,} particles{have}: use a larger simulation.particle_radius, "
-                              f"simulation.precision = \"float32\", or a GPU with more memory") from None
+            raise ConfigError(
+                f"the GPU (device {self.device}) is out of memory allocating {size / 2**20:.0f} MiB "
+                f"for {shape[0]:,} particles{have}: use a larger simulation.particle_radius, "
+                f'simulation.precision = "float32", or a GPU with more memory'
+            ) from None
 
     @staticmethod
     def _flat(a):
@@ -172,36 +176,133 @@ class CUDABackend(Backend):
 
     def densities(self, x, mf, walls, nl, h, rho0, out: Densities, pairs):
         xb, mb, _ = self._wall_arrays(walls)
-        self._launch(self._passes(nl)["density_factor_lambda"], x.shape[0], x, mf, xb, mb, nl.fluid,
-                     nl.fluid_count, nl.boundary, nl.boundary_count, h, rho0, out.rho, out.alpha, out.lam,
-                     out.err, out.n_nbrs, out.gb, pairs)
+        self._launch(
+            self._passes(nl)["density_factor_lambda"],
+            x.shape[0],
+            x,
+            mf,
+            xb,
+            mb,
+            nl.fluid,
+            nl.fluid_count,
+            nl.boundary,
+            nl.boundary_count,
+            h,
+            rho0,
+            out.rho,
+            out.alpha,
+            out.lam,
+            out.err,
+            out.n_nbrs,
+            out.gb,
+            pairs,
+        )
         return pairs
 
     def divergence_residual(self, x, v, mf, dens, nl, pairs, h, dt, drho, k):
-        self._launch(self._passes(nl)["divergence_residual"], x.shape[0], x, v, mf, dens.gb, dens.gvb, nl.fluid,
-                     nl.fluid_count, pairs, h, dens.alpha, dens.n_nbrs, dt, drho, k)
+        self._launch(
+            self._passes(nl)["divergence_residual"],
+            x.shape[0],
+            x,
+            v,
+            mf,
+            dens.gb,
+            dens.gvb,
+            nl.fluid,
+            nl.fluid_count,
+            pairs,
+            h,
+            dens.alpha,
+            dens.n_nbrs,
+            dt,
+            drho,
+            k,
+        )
 
     def density_residual(self, x, v, mf, dens, nl, pairs, h, rho0, dt, err, k):
-        self._launch(self._passes(nl)["density_residual"], x.shape[0], x, v, mf, dens.gb, dens.gvb, nl.fluid,
-                     nl.fluid_count, pairs, h, dens.rho, dens.alpha, rho0, dt, err, k)
+        self._launch(
+            self._passes(nl)["density_residual"],
+            x.shape[0],
+            x,
+            v,
+            mf,
+            dens.gb,
+            dens.gvb,
+            nl.fluid,
+            nl.fluid_count,
+            pairs,
+            h,
+            dens.rho,
+            dens.alpha,
+            rho0,
+            dt,
+            err,
+            k,
+        )
 
     def apply_stiffness(self, x, mf, dens, nl, pairs, h, k, dt, v, k_total):
-        self._launch(self._passes(nl)["apply_stiffness"], x.shape[0], x, mf, dens.gb, nl.fluid, nl.fluid_count,
-                     pairs, h, k, dt, v, k_total)
+        self._launch(
+            self._passes(nl)["apply_stiffness"],
+            x.shape[0],
+            x,
+            mf,
+            dens.gb,
+            nl.fluid,
+            nl.fluid_count,
+            pairs,
+            h,
+            k,
+            dt,
+            v,
+            k_total,
+        )
 
     def viscosity(self, x, v, mf, dens, lam, nl, h, zeta, nu_dt, v_out, drho, disp, pairs):
-        self._launch(self._passes(nl)["xsph"], x.shape[0], x, v, mf, dens.rho, dens.gb, dens.gvb, lam, nl.fluid,
-                     nl.fluid_count, h, zeta, nu_dt, v_out, drho, disp, pairs)
+        self._launch(
+            self._passes(nl)["xsph"],
+            x.shape[0],
+            x,
+            v,
+            mf,
+            dens.rho,
+            dens.gb,
+            dens.gvb,
+            lam,
+            nl.fluid,
+            nl.fluid_count,
+            h,
+            zeta,
+            nu_dt,
+            v_out,
+            drho,
+            disp,
+            pairs,
+        )
         return pairs
 
     def pf_global(self, x, s, mf, dens, nl, h, rho0, a, x_out, lam_sum):
-        self._launch(self._passes(nl)["pf_global"], x.shape[0], x, s, mf, dens.gb, nl.fluid, nl.fluid_count, h,
-                     rho0, dens.lam, a, x_out, lam_sum)
+        self._launch(
+            self._passes(nl)["pf_global"],
+            x.shape[0],
+            x,
+            s,
+            mf,
+            dens.gb,
+            nl.fluid,
+            nl.fluid_count,
+            h,
+            rho0,
+            dens.lam,
+            a,
+            x_out,
+            lam_sum,
+        )
 
     def wall_rate(self, x, walls, nl, h, dens):
         xb, mb, vb = self._wall_arrays(walls)
-        self._launch(self._passes(nl)["wall_rate"], x.shape[0], x, xb, mb, vb, nl.boundary, nl.boundary_count, h,
-                     dens.gvb)
+        self._launch(
+            self._passes(nl)["wall_rate"], x.shape[0], x, xb, mb, vb, nl.boundary, nl.boundary_count, h, dens.gvb
+        )
 
     def advance(self, x, v, dt, g, x_old):
         self._launch(self.P.advance, x.shape[0], x, v, dt, g, x_old)
@@ -213,12 +314,21 @@ class CUDABackend(Backend):
         self._launch(self.P.accelerate, v.shape[0], v, dt, g)
 
     def warm_stiffness(self, k_total, scale, rate, n_nbrs, min_nbrs, warm):
-        self._launch(self.P.warm_stiffness, k_total.shape[0], k_total, scale,
-                     self._every_particle if rate is None else rate, n_nbrs, min_nbrs, warm)
+        self._launch(
+            self.P.warm_stiffness,
+            k_total.shape[0],
+            k_total,
+            scale,
+            self._every_particle if rate is None else rate,
+            n_nbrs,
+            min_nbrs,
+            warm,
+        )
 
     # -- neighbour search ---------------------------------------------------------------------------
     def neighbour_search(self, support, boundary):
         from .cuda_neighbours import CUDANeighbourSearch
+
         return CUDANeighbourSearch(support, boundary, self)
 
     def synchronize(self):
@@ -231,4 +341,3 @@ class CUDABackend(Backend):
             return None
         free, total = _cuda.cuda.current_context().get_memory_info()
         return int(free), int(total)
-

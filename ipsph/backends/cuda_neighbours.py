@@ -17,6 +17,7 @@ per grid (the CPU code: `NeighbourSearch._fit_grid`; moving walls every step, `_
 and copied to the device then. Only the
 fluid's bounding box (a reduction) and the largest list length come back to the host each step.
 """
+
 from __future__ import annotations
 
 import math
@@ -30,6 +31,7 @@ from ._cuda import cuda, device_function
 from .cuda_passes import launch, take_rows
 
 SCAN_CHUNK = 256
+
 
 @njit(inline="always")
 def _reverse_row(idx, i, lo, hi):
@@ -220,7 +222,7 @@ class CUDANeighbourSearch(NeighbourSearch):
     def __init__(self, support: float, boundary, backend, k_fluid: int = 64, k_boundary: int = 48):
         super().__init__(support, boundary, k_fluid, k_boundary)
         self.be = backend
-        self._dev = None     # the grid and the walls' candidates on the device
+        self._dev = None  # the grid and the walls' candidates on the device
         self._scratch = None
 
     def _bounds(self, x):
@@ -229,24 +231,30 @@ class CUDANeighbourSearch(NeighbourSearch):
     def use_boundary_sort(self, boundary_start) -> None:
         super().use_boundary_sort(boundary_start)
         g = self.grid
-        self._dev = {"origin": cuda.to_device(g.origin), "inv_cell": cuda.to_device(g.inv_cell),
-                     "dims": cuda.to_device(g.dims), "xb": cuda.to_device(self.boundary.x),
-                     "start": cuda.to_device(np.ascontiguousarray(self.wall_start, dtype=np.int64)),
-                     "cand": cuda.to_device(np.ascontiguousarray(self.wall_cand, dtype=np.int32))}
+        self._dev = {
+            "origin": cuda.to_device(g.origin),
+            "inv_cell": cuda.to_device(g.inv_cell),
+            "dims": cuda.to_device(g.dims),
+            "xb": cuda.to_device(self.boundary.x),
+            "start": cuda.to_device(np.ascontiguousarray(self.wall_start, dtype=np.int64)),
+            "cand": cuda.to_device(np.ascontiguousarray(self.wall_cand, dtype=np.int32)),
+        }
         self._scratch = None
 
     def update(self, x_fluid):
         self._fit_grid(x_fluid)
         if getattr(self.boundary, "moving", False):
-            self._resort_walls(x_fluid)   # on the host, as the CPU's; use_boundary_sort copies them here
+            self._resort_walls(x_fluid)  # on the host, as the CPU's; use_boundary_sort copies them here
         g, d = self.grid, self._dev
         n, n_cells = x_fluid.shape[0], g.n_cells
         if self._scratch is None or self._scratch["cells"].shape[0] != n:
-            self._scratch = {"cells": cuda.device_array(n, dtype=np.int64),
-                             "tmp": cuda.device_array(n, dtype=np.int64),
-                             "counts": cuda.device_array(n_cells + 1, dtype=np.int32),
-                             "cursor": cuda.device_array(n_cells + 1, dtype=np.int32),
-                             "start": cuda.device_array(n_cells + 1, dtype=np.int64)}
+            self._scratch = {
+                "cells": cuda.device_array(n, dtype=np.int64),
+                "tmp": cuda.device_array(n, dtype=np.int64),
+                "counts": cuda.device_array(n_cells + 1, dtype=np.int32),
+                "cursor": cuda.device_array(n_cells + 1, dtype=np.int32),
+                "start": cuda.device_array(n_cells + 1, dtype=np.int64),
+            }
         s = self._scratch
         perm = cuda.device_array(n, dtype=np.int64)  # handed to the caller: a fresh array
         launch(_cell_ids, n, x_fluid, d["origin"], d["inv_cell"], d["dims"], s["cells"])
@@ -265,14 +273,39 @@ class CUDANeighbourSearch(NeighbourSearch):
         d = self._dev
         n = xs.shape[0]
         while True:
-            if self.lists is None or self.lists.fluid.shape != (n, self.k_fluid) \
-                    or self.lists.boundary.shape != (n, self.k_boundary):
+            if (
+                self.lists is None
+                or self.lists.fluid.shape != (n, self.k_fluid)
+                or self.lists.boundary.shape != (n, self.k_boundary)
+            ):
                 self.lists = DeviceNeighbourLists(n, self.k_fluid, self.k_boundary)
             nl = self.lists
-            launch(_gather_fluid, n, xs, fluid_start, d["origin"], d["inv_cell"], d["dims"], self.h,
-                   nl.fluid, nl.fluid_count)
-            launch(_gather_walls, n, xs, d["xb"], d["start"], d["cand"], d["origin"], d["inv_cell"], d["dims"],
-                   self.h, nl.boundary, nl.boundary_count)
+            launch(
+                _gather_fluid,
+                n,
+                xs,
+                fluid_start,
+                d["origin"],
+                d["inv_cell"],
+                d["dims"],
+                self.h,
+                nl.fluid,
+                nl.fluid_count,
+            )
+            launch(
+                _gather_walls,
+                n,
+                xs,
+                d["xb"],
+                d["start"],
+                d["cand"],
+                d["origin"],
+                d["inv_cell"],
+                d["dims"],
+                self.h,
+                nl.boundary,
+                nl.boundary_count,
+            )
             most_f = int(self.be.reducer.max(nl.fluid_count)) if n else 0
             most_b = int(self.be.reducer.max(nl.boundary_count)) if n else 0
             if most_f <= self.k_fluid and most_b <= self.k_boundary:

@@ -18,6 +18,7 @@ Also here: the element-wise updates, the permutations and the reductions. Reduct
 fixed order: REDUCE_THREADS partial results, each a strided serial sum, then folds of FOLD partials
 in index order (`Reducer`), so a run gives the same bits on every launch, whatever the GPU's size.
 """
+
 from __future__ import annotations
 
 import functools
@@ -30,8 +31,8 @@ from . import bodies
 from ._cuda import SIMULATOR, cuda, device_function
 from .bodies import DENSITY_ROWS, PF_GLOBAL_ROWS, RATE_ROWS, STIFFNESS_ROWS, VISCOSITY_ROWS, WALL_RATE_ROWS
 
-THREADS = 128                      # threads per block
-MAX_BLOCKS = 1 if SIMULATOR else 8192   # the simulator runs each thread as a Python thread: few of them
+THREADS = 128  # threads per block
+MAX_BLOCKS = 1 if SIMULATOR else 8192  # the simulator runs each thread as a Python thread: few of them
 REDUCE_THREADS = 8 if SIMULATOR else 8192  # partial results of a reduction (fixed: see the docstring)
 
 f64 = np.float64
@@ -61,35 +62,69 @@ def passes(kf: int, kb: int):
     k_all = kf + kb
 
     @cuda.jit
-    def density_factor_lambda(x, mf, xb, mb, nf, cf, nb, cb, h, rho0, rho, alpha, lam, err, n_nbrs, gb,
-                              pair_grad):
+    def density_factor_lambda(x, mf, xb, mb, nf, cf, nb, cb, h, rho0, rho, alpha, lam, err, n_nbrs, gb, pair_grad):
         fill = pair_grad.shape[0] == x.shape[0]
         w0 = w(0.0, h)
         buf = cuda.local.array((DENSITY_ROWS, k_all), f64)
         for i in range(cuda.grid(1), x.shape[0], cuda.gridsize(1)):
-            density_at(i, x, mf, xb, mb, nf, cf, nb, cb, h, rho0, w0, fill, buf, rho, alpha, lam, err, n_nbrs,
-                       gb, pair_grad)
+            density_at(
+                i, x, mf, xb, mb, nf, cf, nb, cb, h, rho0, w0, fill, buf, rho, alpha, lam, err, n_nbrs, gb, pair_grad
+            )
 
     @cuda.jit
     def divergence_residual(x, v, mf, gb, gvb, nf, cf, pair_grad, h, alpha, n_nbrs, dt, drho, k):
         buf = cuda.local.array((RATE_ROWS, kf), f64)
         for i in range(cuda.grid(1), x.shape[0], cuda.gridsize(1)):
-            divergence_residual_at(i, x, v, mf, gb, gvb, nf, cf, pair_grad, pair_grad.shape[0] == x.shape[0], h, alpha,
-                                   n_nbrs, dt, buf, drho, k)
+            divergence_residual_at(
+                i,
+                x,
+                v,
+                mf,
+                gb,
+                gvb,
+                nf,
+                cf,
+                pair_grad,
+                pair_grad.shape[0] == x.shape[0],
+                h,
+                alpha,
+                n_nbrs,
+                dt,
+                buf,
+                drho,
+                k,
+            )
 
     @cuda.jit
     def density_residual(x, v, mf, gb, gvb, nf, cf, pair_grad, h, rho, alpha, rho0, dt, rho_err, k):
         buf = cuda.local.array((RATE_ROWS, kf), f64)
         for i in range(cuda.grid(1), x.shape[0], cuda.gridsize(1)):
-            density_residual_at(i, x, v, mf, gb, gvb, nf, cf, pair_grad, pair_grad.shape[0] == x.shape[0], h, rho, alpha,
-                                rho0, dt, buf, rho_err, k)
+            density_residual_at(
+                i,
+                x,
+                v,
+                mf,
+                gb,
+                gvb,
+                nf,
+                cf,
+                pair_grad,
+                pair_grad.shape[0] == x.shape[0],
+                h,
+                rho,
+                alpha,
+                rho0,
+                dt,
+                buf,
+                rho_err,
+                k,
+            )
 
     @cuda.jit
     def apply_stiffness(x, mf, gb, nf, cf, pair_grad, h, k, dt, v, k_total):
         buf = cuda.local.array((STIFFNESS_ROWS, kf), f64)
         for i in range(cuda.grid(1), x.shape[0], cuda.gridsize(1)):
-            stiffness_at(i, x, mf, gb, nf, cf, pair_grad, pair_grad.shape[0] == x.shape[0], h, k, dt, buf, v,
-                         k_total)
+            stiffness_at(i, x, mf, gb, nf, cf, pair_grad, pair_grad.shape[0] == x.shape[0], h, k, dt, buf, v, k_total)
 
     @cuda.jit
     def xsph(x, v, mf, rho, gb, gvb, lam, nf, cf, h, zeta, nu_dt, v_out, drho, disp, pair_grad):
@@ -99,8 +134,30 @@ def passes(kf: int, kb: int):
         standard = nu_dt > 0.0
         buf = cuda.local.array((VISCOSITY_ROWS, kf), f64)
         for i in range(cuda.grid(1), x.shape[0], cuda.gridsize(1)):
-            viscosity_at(i, x, v, mf, rho, gb, gvb, lam, nf, cf, h, zeta, nu_dt, eps, standard, with_disp, fill,
-                         buf, v_out, drho, disp, pair_grad)
+            viscosity_at(
+                i,
+                x,
+                v,
+                mf,
+                rho,
+                gb,
+                gvb,
+                lam,
+                nf,
+                cf,
+                h,
+                zeta,
+                nu_dt,
+                eps,
+                standard,
+                with_disp,
+                fill,
+                buf,
+                v_out,
+                drho,
+                disp,
+                pair_grad,
+            )
 
     @cuda.jit
     def pf_global(x, s, mf, gb, nf, cf, h, rho0, lam, a, x_out, lam_sum):
@@ -114,9 +171,15 @@ def passes(kf: int, kb: int):
         for i in range(cuda.grid(1), x.shape[0], cuda.gridsize(1)):
             wall_rate_at(i, x, xb, mb, vb, nb, cb, h, buf, gvb)
 
-    kernels = {"density_factor_lambda": density_factor_lambda, "divergence_residual": divergence_residual,
-               "density_residual": density_residual, "apply_stiffness": apply_stiffness, "xsph": xsph,
-               "pf_global": pf_global, "wall_rate": wall_rate}
+    kernels = {
+        "density_factor_lambda": density_factor_lambda,
+        "divergence_residual": divergence_residual,
+        "density_residual": density_residual,
+        "apply_stiffness": apply_stiffness,
+        "xsph": xsph,
+        "pf_global": pf_global,
+        "wall_rate": wall_rate,
+    }
     for k in kernels.values():
         k.strides = (kf, kb)  # what passes() was called with (a compile check rebuilds them)
     return kernels
@@ -380,8 +443,18 @@ class Reducer:
         return math.sqrt(vmax2), ke
 
     def first_unhealthy(self, x, v, lo, hi) -> int:
-        self._stage1(_partial_unhealthy, x, v, float(lo[0]), float(lo[1]), float(lo[2]), float(hi[0]),
-                     float(hi[1]), float(hi[2]), self.part[0])
+        self._stage1(
+            _partial_unhealthy,
+            x,
+            v,
+            float(lo[0]),
+            float(lo[1]),
+            float(lo[2]),
+            float(hi[0]),
+            float(hi[1]),
+            float(hi[2]),
+            self.part[0],
+        )
         first = int(self._rows(1, 2)[0])
         return -1 if first >= x.shape[0] else first
 

@@ -27,6 +27,7 @@ Timing rules (docs/performance.md):
 ``--steps S --warmup W`` (the scaling sweep) runs W + S CFL steps with ``Simulation.step`` instead of
 running to an end time; the per-step statistics then cover the last S steps only.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -45,6 +46,7 @@ def _rss_bytes() -> int:
             return int(fh.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
     except OSError:  # pragma: no cover - non-Linux
         import psutil
+
         return int(psutil.Process().memory_info().rss)
 
 
@@ -55,6 +57,7 @@ def _peak_rss_bytes() -> int:
 def _arrays_nbytes(*objects) -> int:
     """Bytes of the numpy arrays held as attributes of `objects` (one level, each array once)."""
     import numpy as np
+
     seen: set[int] = set()
     total = 0
 
@@ -83,9 +86,12 @@ def _arrays_nbytes(*objects) -> int:
 def solver_nbytes(sim) -> int:
     """The solver's own arrays: state + neighbour lists/grid + boundary + method scratch."""
     search = sim.search
-    return (_arrays_nbytes(sim.state) + _arrays_nbytes(search, getattr(search, "lists", None),
-                                                       getattr(search, "grid", None))
-            + _arrays_nbytes(sim.boundary) + sim.method.nbytes)
+    return (
+        _arrays_nbytes(sim.state)
+        + _arrays_nbytes(search, getattr(search, "lists", None), getattr(search, "grid", None))
+        + _arrays_nbytes(sim.boundary)
+        + sim.method.nbytes
+    )
 
 
 def device_nbytes(sim) -> int:
@@ -117,8 +123,14 @@ def _mean(xs):
     return sum(xs) / len(xs) if xs else math.nan
 
 
-def measure(scene_path: str, method: str, end_time: float | None, overrides: list[str],
-            steps: int | None = None, warmup: int = 1) -> dict:
+def measure(
+    scene_path: str,
+    method: str,
+    end_time: float | None,
+    overrides: list[str],
+    steps: int | None = None,
+    warmup: int = 1,
+) -> dict:
     import numba
 
     from ..scene import default_scene_path, load_scene
@@ -134,6 +146,7 @@ def measure(scene_path: str, method: str, end_time: float | None, overrides: lis
     free0 = None
     if scene.backend == "cuda":  # the device's context first, so its own memory is not counted
         from ..backends import get_backend
+
         mem = get_backend("cuda", scene.precision, scene.device).memory()
         free0 = mem[0] if mem else None
     fluid_x, fluid_v, boundary_x, notes = sample_scene(scene)
@@ -255,8 +268,10 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     if args.threads is not None:
         import numba
+
         numba.set_num_threads(args.threads)
     from ..errors import IpsphError
+
     try:
         result = measure(args.scene, args.method, args.end_time, args.set, args.steps, args.warmup)
     except IpsphError as exc:

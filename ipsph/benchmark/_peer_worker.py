@@ -16,6 +16,7 @@ count and the mean positive density error ``mean_i max(rho_i / rho0 - 1, 0)`` ov
 read from the fluid model's ``density`` field (the density the solver computed in that step).
 All SPlisHSPlasH console output goes to stderr so stdout holds only the JSON line.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -158,8 +159,7 @@ def run(scene: Path, method: str, end_time: float, work_dir: Path, params) -> di
     has_iters_v = hasattr(type(ts), "SOLVER_ITERATIONS_V")
 
     rec = {"dt": [], "err": [], "iters": [], "iters_v": [], "step_s": []}
-    state = {"t_prev_end": None, "t_first": None, "cpu_first": None, "t_last": None, "cpu_last": None,
-             "init_end": None}
+    state = {"t_prev_end": None, "t_first": None, "cpu_first": None, "t_last": None, "cpu_last": None, "init_end": None}
 
     def on_step():
         t = time.perf_counter()
@@ -198,8 +198,11 @@ def run(scene: Path, method: str, end_time: float, work_dir: Path, params) -> di
     phases = {}
     for avg in Timing.m_averageTimes.values():  # keyed by an id; the phase name is avg.name
         if avg.counter > 0:
-            phases[str(avg.name)] = {"mean_ms": avg.totalTime / avg.counter, "count": int(avg.counter),
-                                 "total_s": avg.totalTime / 1e3}
+            phases[str(avg.name)] = {
+                "mean_ms": avg.totalTime / avg.counter,
+                "count": int(avg.counter),
+                "total_s": avg.totalTime / 1e3,
+            }
     sim_step = phases.get("SimStep")
     steps = len(rec["dt"])
     wall = sim_step["total_s"] if sim_step else float("nan")

@@ -7,6 +7,7 @@ settings and colour range), then writes OUT/figure4_t<time>.png (IPSPH left, PF 
 common frame times and OUT/plots/ (density error, divergence error and iterations against time,
 both runs overlaid). Prints the run-mean density error of both.
 """
+
 from __future__ import annotations
 
 import subprocess
@@ -21,9 +22,24 @@ SNAPSHOT_FRACTIONS = (0.25, 0.5, 0.75, 1.0)
 
 
 def _run(method: str, out: Path, end_time: float, threads: int, extra: list[str]) -> None:
-    cmd = [sys.executable, "-m", "ipsph", "run", str(pipeline_path("breaking_dam")), "--method", method,
-           "-o", str(out), "--end-time", str(end_time), "--overwrite", "--quiet", "--threads", str(threads),
-           *sum((["--set", s] for s in extra), [])]
+    cmd = [
+        sys.executable,
+        "-m",
+        "ipsph",
+        "run",
+        str(pipeline_path("breaking_dam")),
+        "--method",
+        method,
+        "-o",
+        str(out),
+        "--end-time",
+        str(end_time),
+        "--overwrite",
+        "--quiet",
+        "--threads",
+        str(threads),
+        *sum((["--set", s] for s in extra), []),
+    ]
     res = subprocess.run(cmd, capture_output=True, text=True)
     if res.returncode != 0:
         raise RuntimeError(f"{' '.join(cmd)} failed ({res.returncode}): {res.stderr.strip()[-2000:]}")
@@ -31,6 +47,7 @@ def _run(method: str, out: Path, end_time: float, threads: int, extra: list[str]
 
 def _side_by_side(left: Path, right: Path, out: Path, labels=("IPSPH", "PF")) -> Path:
     from PIL import Image, ImageDraw
+
     a, b = Image.open(left).convert("RGB"), Image.open(right).convert("RGB")
     canvas = Image.new("RGB", (a.width + b.width, max(a.height, b.height)))
     canvas.paste(a, (0, 0))
@@ -47,6 +64,7 @@ def figure4(out_dir: Path, end_time: float = 2.0, threads: int = 2, extra: list[
     from ..io.pvd import PvdSeries
     from ..io.stats import read_stats
     from ..plots import plot_runs
+
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     runs = {m: out_dir / m for m in ("ipsph", "pf")}
@@ -66,10 +84,13 @@ def figure4(out_dir: Path, end_time: float = 2.0, threads: int = 2, extra: list[
     for m, folder in runs.items():
         st = read_stats(folder / "stats.csv")
         run = read_run_json(folder / "run.json")
-        summary[m] = {"density_error_mean_pct": float(np.mean(st["density_error_mean_pct"])),
-                      "density_error_worst_pct": float(np.max(st["density_error_mean_pct"])),
-                      "steps": int(run["steps"]), "wall_seconds": float(run["wall_seconds"]),
-                      "fluid_particles": int(run["fluid_particles"])}
+        summary[m] = {
+            "density_error_mean_pct": float(np.mean(st["density_error_mean_pct"])),
+            "density_error_worst_pct": float(np.max(st["density_error_mean_pct"])),
+            "steps": int(run["steps"]),
+            "wall_seconds": float(run["wall_seconds"]),
+            "fluid_particles": int(run["fluid_particles"]),
+        }
     summary["files"] = [str(p) for p in written]
     return summary
 
@@ -79,7 +100,9 @@ def print_summary(summary: dict) -> None:
     print("|---|---:|---:|---:|---:|---:|")
     for m in ("ipsph", "pf"):
         s = summary[m]
-        print(f"| {m.upper()} | {s['fluid_particles']:,} | {s['steps']} | {s['wall_seconds']:.1f} | "
-              f"{s['density_error_mean_pct']:.4f} | {s['density_error_worst_pct']:.4f} |")
+        print(
+            f"| {m.upper()} | {s['fluid_particles']:,} | {s['steps']} | {s['wall_seconds']:.1f} | "
+            f"{s['density_error_mean_pct']:.4f} | {s['density_error_worst_pct']:.4f} |"
+        )
     for f in summary["files"]:
         print(f)

@@ -8,6 +8,7 @@ is bracketed by a :class:`LoadSampler` and a run on a loaded machine can be flag
   benchmark's own threads do not count as "load": it is the share of the machine used by someone else.
 * ``loadavg`` is the kernel's 1-minute load average (lagged by design; it includes our own threads).
 """
+
 from __future__ import annotations
 
 import os
@@ -226,8 +227,7 @@ def machine_info() -> dict:
 STDERR_TAIL = 3000  # characters of a failed worker's stderr kept in the error
 
 
-def run_json_worker(cmd: list[str], env: dict, timeout: float, what: str, where: str,
-                    sample_load: bool = True) -> dict:
+def run_json_worker(cmd: list[str], env: dict, timeout: float, what: str, where: str, sample_load: bool = True) -> dict:
     """Run one benchmark worker process whose last stdout line is one JSON object.
 
     The machine's load is sampled while it runs (result["load"]); the command is kept in
@@ -244,8 +244,9 @@ def run_json_worker(cmd: list[str], env: dict, timeout: float, what: str, where:
         proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=timeout)
     except subprocess.TimeoutExpired as exc:
         err = exc.stderr.decode(errors="replace") if isinstance(exc.stderr, bytes) else (exc.stderr or "")
-        raise RuntimeError(f"{what} timed out after {timeout} s on {where}; "
-                           f"stderr tail:\n{err[-STDERR_TAIL:]}") from None
+        raise RuntimeError(
+            f"{what} timed out after {timeout} s on {where}; stderr tail:\n{err[-STDERR_TAIL:]}"
+        ) from None
     finally:
         load = sampler.stop() if sampler else None
     lines = [ln for ln in (proc.stdout or "").splitlines() if ln.strip()]
@@ -256,8 +257,7 @@ def run_json_worker(cmd: list[str], env: dict, timeout: float, what: str, where:
         except json.JSONDecodeError:
             result = None
     if result is None:
-        status = (f"killed by signal {-proc.returncode}" if proc.returncode < 0
-                  else f"exit status {proc.returncode}")
+        status = f"killed by signal {-proc.returncode}" if proc.returncode < 0 else f"exit status {proc.returncode}"
         raise RuntimeError(f"{what} failed ({status}) on {where}; stderr tail:\n{(proc.stderr or '')[-STDERR_TAIL:]}")
     result["load"] = load.as_dict() if load else None
     result["command"] = cmd
@@ -293,6 +293,13 @@ def timed_ipsph_run(args: list[str], out, threads: int, timeout: float, env: dic
     load = sampler.stop()
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     count = lambda folder, pattern: len(list((out / folder).glob(pattern))) if (out / folder).is_dir() else 0  # noqa: E731
-    return {"seconds": secs, "exit_code": code, "stderr_tail": (err or "")[-1000:], "load": load,
-            "cpu_seconds": (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime),
-            "frames": count("frames", "*.vtu"), "pngs": count("renders", "*.png"), "command": cmd}
+    return {
+        "seconds": secs,
+        "exit_code": code,
+        "stderr_tail": (err or "")[-1000:],
+        "load": load,
+        "cpu_seconds": (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime),
+        "frames": count("frames", "*.vtu"),
+        "pngs": count("renders", "*.png"),
+        "command": cmd,
+    }

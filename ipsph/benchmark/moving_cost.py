@@ -9,6 +9,7 @@ the static variant. What a moving wall adds: the walls' re-sort into the grid an
 candidate lists every step (`NeighbourSearch._resort_walls`), the wall-velocity pass
 (`wall_rate`), the serial reaction scatter (`rigid.wall_forces`); a body also its contacts.
 """
+
 from __future__ import annotations
 
 import statistics
@@ -24,21 +25,24 @@ def _scene(kind: str, r: float) -> dict:
         box["motion"] = {"type": "sinusoid", "axis": [1, 0, 0], "amplitude": 0.05, "period": 1.0}
     elif kind == "body":
         box["density"] = 500.0
-    return {"simulation": {"particle_radius": r, "end_time": 10.0, "fit_wall_volumes": True},
-            "fluid": [{"box": {"min": [0, 0, 0], "max": [1.2, 0.35, 0.6]}}],
-            "boundary": [{"name": "tank", "box": {"min": [0, 0, 0], "max": [1.2, 0.8, 0.6]}}, box],
-            "render": {"enabled": False}}
+    return {
+        "simulation": {"particle_radius": r, "end_time": 10.0, "fit_wall_volumes": True},
+        "fluid": [{"box": {"min": [0, 0, 0], "max": [1.2, 0.35, 0.6]}}],
+        "boundary": [{"name": "tank", "box": {"min": [0, 0, 0], "max": [1.2, 0.8, 0.6]}}, box],
+        "render": {"enabled": False},
+    }
 
 
 def moving_cost(r: float = 0.02, repeats: int = 5, threads: int = 2, log=print) -> list[dict]:
     import numba
 
     from ..simulation import Simulation
+
     numba.set_num_threads(threads)
     sims = {}
     for kind in ("static", "kinematic", "body"):
         sims[kind] = Simulation.from_scene(_scene(kind, r))
-        for _ in range(3):   # compile and warm the caches
+        for _ in range(3):  # compile and warm the caches
             sims[kind].step(DT)
     times: dict[str, list[float]] = {k: [] for k in sims}
     for rep in range(repeats):
@@ -49,15 +53,25 @@ def moving_cost(r: float = 0.02, repeats: int = 5, threads: int = 2, log=print) 
             times[kind].append((time.perf_counter() - t0) / STEPS)
         log(f"ipsph bench: moving walls, turn {rep + 1}/{repeats}")
     base = statistics.median(times["static"])
-    return [{"variant": k, "fluid": sims[k].n_fluid, "walls": sims[k].n_boundary,
-             "ms_per_step": 1000 * statistics.median(v), "ratio": statistics.median(v) / base,
-             "ms_all": [1000 * x for x in v]} for k, v in times.items()]
+    return [
+        {
+            "variant": k,
+            "fluid": sims[k].n_fluid,
+            "walls": sims[k].n_boundary,
+            "ms_per_step": 1000 * statistics.median(v),
+            "ratio": statistics.median(v) / base,
+            "ms_all": [1000 * x for x in v],
+        }
+        for k, v in times.items()
+    ]
 
 
 def table(rows: list[dict], markdown: bool) -> str:
     head = ("variant", "fluid", "walls", "ms/step (median)", "ratio to static")
-    lines = [[r["variant"], f"{r['fluid']:,}", f"{r['walls']:,}", f"{r['ms_per_step']:.2f}", f"{r['ratio']:.3f}"]
-             for r in rows]
+    lines = [
+        [r["variant"], f"{r['fluid']:,}", f"{r['walls']:,}", f"{r['ms_per_step']:.2f}", f"{r['ratio']:.3f}"]
+        for r in rows
+    ]
     if markdown:
         out = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
         out += ["| " + " | ".join(x) + " |" for x in lines]

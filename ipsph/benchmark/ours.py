@@ -7,6 +7,7 @@ The worker (:mod:`ipsph.benchmark._ours_worker`) gets ``NUMBA_NUM_THREADS`` in i
 the thread pool is sized before Numba starts; its peak RSS therefore belongs to one method only.
 See the worker's docstring for the meaning of every key of the result.
 """
+
 from __future__ import annotations
 
 import os
@@ -36,9 +37,19 @@ def ours_env(threads: int | None = None, extra: dict[str, str] | None = None) ->
     return env
 
 
-def run_ours(scene_path: str | Path, method: str, end_time: float | None, threads: int,
-             overrides: tuple[str, ...] | list[str] = (), *, steps: int | None = None, warmup: int = 1,
-             timeout: float = 1800, sample_load: bool = True, env: dict[str, str] | None = None) -> dict:
+def run_ours(
+    scene_path: str | Path,
+    method: str,
+    end_time: float | None,
+    threads: int,
+    overrides: tuple[str, ...] | list[str] = (),
+    *,
+    steps: int | None = None,
+    warmup: int = 1,
+    timeout: float = 1800,
+    sample_load: bool = True,
+    env: dict[str, str] | None = None,
+) -> dict:
     """Run `scene_path` ("default" for the built-in scene) with `method` in a worker subprocess.
 
     Either `end_time` (simulated seconds) or `steps` (+ `warmup` steps left out of the statistics).
@@ -59,8 +70,18 @@ def run_ours(scene_path: str | Path, method: str, end_time: float | None, thread
             raise ConfigError(f"scene {scene_path} (resolved {resolved}) is not a file")
         scene = str(resolved)
     # -P: the current folder is not put first on sys.path, so ipsph comes from PYTHONPATH (ours_env)
-    cmd = [sys.executable, "-P", "-m", "ipsph.benchmark._ours_worker", "--scene", scene, "--method", method,
-           "--threads", str(threads)]
+    cmd = [
+        sys.executable,
+        "-P",
+        "-m",
+        "ipsph.benchmark._ours_worker",
+        "--scene",
+        scene,
+        "--method",
+        method,
+        "--threads",
+        str(threads),
+    ]
     if steps is not None:
         cmd += ["--steps", str(int(steps)), "--warmup", str(int(warmup))]
     else:
@@ -68,5 +89,6 @@ def run_ours(scene_path: str | Path, method: str, end_time: float | None, thread
     for item in overrides:
         cmd += ["--set", str(item)]
 
-    return run_json_worker(cmd, ours_env(threads, env), timeout, "ipsph worker", f"{scene} method={method}",
-                           sample_load)
+    return run_json_worker(
+        cmd, ours_env(threads, env), timeout, "ipsph worker", f"{scene} method={method}", sample_load
+    )

@@ -1,5 +1,6 @@
 """What a side process costs the default scene's `ipsph run`: runs without and with it, alternating
 in fresh processes (`ipsph bench --render-overhead`, `--surface-overhead`), median of pair ratios."""
+
 from __future__ import annotations
 
 import statistics
@@ -13,11 +14,18 @@ def default_run(args: list[str], out: Path, threads: int, timeout: float, check)
     """One `ipsph run` of the default scene into `out`: wall and CPU seconds, frames, PNGs, load;
     `ok` when it exited 0 with frames and `check(result, out)` holds."""
     from .machine import timed_ipsph_run
+
     r = timed_ipsph_run(args, out, threads, timeout)
-    return {"seconds": r["seconds"], "cpu_seconds": r["cpu_seconds"], "exit_code": r["exit_code"],
-            "frames": r["frames"], "pngs": r["pngs"], "stderr_tail": r["stderr_tail"],
-            "ok": r["exit_code"] == 0 and r["frames"] > 0 and check(r, out),
-            "others_cores": r["load"].others_busy_mean * r["load"].cpus}
+    return {
+        "seconds": r["seconds"],
+        "cpu_seconds": r["cpu_seconds"],
+        "exit_code": r["exit_code"],
+        "frames": r["frames"],
+        "pngs": r["pngs"],
+        "stderr_tail": r["stderr_tail"],
+        "ok": r["exit_code"] == 0 and r["frames"] > 0 and check(r, out),
+        "others_cores": r["load"].others_busy_mean * r["load"].cpus,
+    }
 
 
 def alternating_pairs(one_run, key: str, repeats: int, max_load: float, describe, log=print) -> dict:
@@ -29,30 +37,47 @@ def alternating_pairs(one_run, key: str, repeats: int, max_load: float, describe
         for k in range(repeats):
             plain, with_it = one_run(False, Path(tmp), k), one_run(True, Path(tmp), k)
             others = max(plain["others_cores"], with_it["others_cores"])
-            pairs.append({"plain": plain, key: with_it, "loaded": others > max_load,
-                          "ratio": with_it["seconds"] / plain["seconds"]})
-            log(f"{key} overhead pair {k + 1}/{repeats}: {plain['seconds']:.2f} s without, {with_it['seconds']:.2f} s "
+            pairs.append(
+                {
+                    "plain": plain,
+                    key: with_it,
+                    "loaded": others > max_load,
+                    "ratio": with_it["seconds"] / plain["seconds"],
+                }
+            )
+            log(
+                f"{key} overhead pair {k + 1}/{repeats}: {plain['seconds']:.2f} s without, {with_it['seconds']:.2f} s "
                 f"with ({describe(with_it)}), x{pairs[-1]['ratio']:.3f}, others {others:.2f} cores"
-                f"{' (loaded)' if others > max_load else ''}")
+                f"{' (loaded)' if others > max_load else ''}"
+            )
     good = [p for p in pairs if not p["loaded"] and p["plain"]["ok"] and p[key]["ok"]]
     every = [p for p in pairs if p["plain"]["ok"] and p[key]["ok"]]
-    med = (lambda xs: statistics.median(xs) if xs else float("nan"))  # noqa: E731
-    return {"pairs": pairs, "counted": len(good),
-            "plain_seconds": med([p["plain"]["seconds"] for p in good]),
-            f"{key}_seconds": med([p[key]["seconds"] for p in good]),
-            "ratio_median": med([p["ratio"] for p in good]),
-            "ratio_median_all": med([p["ratio"] for p in every]),
-            "plain_cpu": med([p["plain"]["cpu_seconds"] for p in good]),
-            f"{key}_cpu": med([p[key]["cpu_seconds"] for p in good]),
-            "ok": all(p["plain"]["ok"] and p[key]["ok"] for p in pairs)}
+    med = lambda xs: statistics.median(xs) if xs else float("nan")  # noqa: E731
+    return {
+        "pairs": pairs,
+        "counted": len(good),
+        "plain_seconds": med([p["plain"]["seconds"] for p in good]),
+        f"{key}_seconds": med([p[key]["seconds"] for p in good]),
+        "ratio_median": med([p["ratio"] for p in good]),
+        "ratio_median_all": med([p["ratio"] for p in every]),
+        "plain_cpu": med([p["plain"]["cpu_seconds"] for p in good]),
+        f"{key}_cpu": med([p[key]["cpu_seconds"] for p in good]),
+        "ok": all(p["plain"]["ok"] and p[key]["ok"] for p in pairs),
+    }
 
 
 def table(s: dict, key: str, without: str, with_it: str, markdown: bool) -> str:
     """The pair medians and the slow-down against TARGET."""
     met = "met" if s["ratio_median"] <= 1 + TARGET else "NOT met"
-    rows = [(without, f"{s['plain_seconds']:.2f}", f"{s['plain_cpu']:.1f}", ""),
-            (with_it, f"{s[key + '_seconds']:.2f}", f"{s[key + '_cpu']:.1f}",
-             f"x{s['ratio_median']:.3f} (median of pair ratios; target <= x{1 + TARGET:.2f}: {met})")]
+    rows = [
+        (without, f"{s['plain_seconds']:.2f}", f"{s['plain_cpu']:.1f}", ""),
+        (
+            with_it,
+            f"{s[key + '_seconds']:.2f}",
+            f"{s[key + '_cpu']:.1f}",
+            f"x{s['ratio_median']:.3f} (median of pair ratios; target <= x{1 + TARGET:.2f}: {met})",
+        ),
+    ]
     head = ("default scene `ipsph run`", "wall s (median)", "CPU s (median)", "slow-down")
     note = f"{s['counted']} of {len(s['pairs'])} pairs counted (the others ran on a loaded machine or failed)"
     if "ratio_median_all" in s:

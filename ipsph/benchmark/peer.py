@@ -11,6 +11,7 @@ without it on headless Debian images) in its environment; a crash therefore neve
 
 See ``_peer_worker`` for the meaning of every key of the result.
 """
+
 from __future__ import annotations
 
 import functools
@@ -55,8 +56,9 @@ def peer_available() -> tuple[bool, str]:
         "print(metadata.version('pySPlisHSPlasH'))\n"
     )
     try:
-        proc = subprocess.run([sys.executable, "-c", code], env=peer_env(1), capture_output=True,
-                              text=True, timeout=120)
+        proc = subprocess.run(
+            [sys.executable, "-c", code], env=peer_env(1), capture_output=True, text=True, timeout=120
+        )
     except subprocess.TimeoutExpired:
         return False, "importing pysplishsplash took over 120 s in a subprocess"
     if proc.returncode != 0:
@@ -118,10 +120,28 @@ def run_peer(
     if not ok:
         raise RuntimeError(f"SPlisHSPlasH peer unavailable: {why}")
 
-    cmd = [sys.executable, "-m", "ipsph.benchmark._peer_worker", "--scene", str(resolved), "--method", method,
-           "--end-time", repr(float(end_time)), "--threads", str(threads), *_param_args(params)]
+    cmd = [
+        sys.executable,
+        "-m",
+        "ipsph.benchmark._peer_worker",
+        "--scene",
+        str(resolved),
+        "--method",
+        method,
+        "--end-time",
+        repr(float(end_time)),
+        "--threads",
+        str(threads),
+        *_param_args(params),
+    ]
     if work_dir is not None:
         cmd += ["--work-dir", str(Path(work_dir).resolve())]
 
-    return run_json_worker(cmd, {**peer_env(threads), **(env or {})}, timeout, "SPlisHSPlasH peer",
-                           f"{resolved} method={method}", sample_load)
+    return run_json_worker(
+        cmd,
+        {**peer_env(threads), **(env or {})},
+        timeout,
+        "SPlisHSPlasH peer",
+        f"{resolved} method={method}",
+        sample_load,
+    )

@@ -14,6 +14,7 @@ renders (the render process beside the solver), R times each; medians of wall ti
 the figure the issue's "renders slow the default run by at most 25 %" is about. A pair during which
 other processes kept more than --max-load cores busy is shown as loaded and left out of the medians.
 """
+
 from __future__ import annotations
 
 import statistics
@@ -26,10 +27,10 @@ import numpy as np
 from . import overhead
 
 
-
 def _block(n: int):
     from ..meshes import box_mesh
     from ..params import spacing
+
     r = 0.01
     side = max(int(round(n ** (1 / 3))), 1)
     g = (np.arange(side) + 1.0) * spacing(r)
@@ -45,6 +46,7 @@ def render_cost(n: int, frames: int = 3) -> dict:
     """Median seconds per frame at ~n particles: splat engine (draw, PNG) and the all-VTK engine."""
     from ..model import RenderConfig
     from ..render import FrameRenderer, gl_available, save_png
+
     ok, why = gl_available()
     if not ok:
         return {"particles": n, "error": why}
@@ -64,8 +66,11 @@ def render_cost(n: int, frames: int = 3) -> dict:
                     save_png(img, Path(tmp) / f"f{k}.png")
                     draw.append(t1 - t0)
                     png.append(time.perf_counter() - t1)
-            row[engine] = {"seconds_per_frame": statistics.median(a + b for a, b in zip(draw, png)),
-                           "draw_seconds": statistics.median(draw), "png_seconds": statistics.median(png)}
+            row[engine] = {
+                "seconds_per_frame": statistics.median(a + b for a, b in zip(draw, png)),
+                "draw_seconds": statistics.median(draw),
+                "png_seconds": statistics.median(png),
+            }
     row["seconds_per_frame"] = row["splat"]["seconds_per_frame"]
     return row
 
@@ -82,24 +87,40 @@ def table(rows: list[dict], markdown: bool) -> str:
             cells = [f"{r['particles']:,}", "skipped: " + r["error"]] + [""] * 4
         else:
             s, v = r["splat"], r["vtk"]
-            cells = [f"{r['particles']:,}", f"{s['seconds_per_frame']:.3f}", f"{s['draw_seconds']:.3f}",
-                     f"{s['png_seconds']:.3f}", f"{v['seconds_per_frame']:.3f}",
-                     f"{v['seconds_per_frame'] / s['seconds_per_frame']:.1f}x"]
+            cells = [
+                f"{r['particles']:,}",
+                f"{s['seconds_per_frame']:.3f}",
+                f"{s['draw_seconds']:.3f}",
+                f"{s['png_seconds']:.3f}",
+                f"{v['seconds_per_frame']:.3f}",
+                f"{v['seconds_per_frame'] / s['seconds_per_frame']:.1f}x",
+            ]
         lines.append(("| " + " | ".join(cells) + " |") if markdown else "  ".join(f"{c:>17s}" for c in cells))
     return "\n".join(lines)
 
 
 def _one_run(render: bool, threads: int, tmp: Path, k: int, timeout: float) -> dict:
     out = tmp / f"out-{'render' if render else 'plain'}-{k}"
-    row = overhead.default_run([] if render else ["--no-render"], out, threads, timeout,
-                               lambda r, _: r["pngs"] == r["frames"] if render else True)
+    row = overhead.default_run(
+        [] if render else ["--no-render"],
+        out,
+        threads,
+        timeout,
+        lambda r, _: r["pngs"] == r["frames"] if render else True,
+    )
     return {"render": render, **row}
 
 
 def render_overhead(repeats: int, threads: int, max_load: float, timeout: float = 900.0, log=print) -> dict:
     """`ipsph run` (default scene) without and with renders, alternating, `repeats` pairs."""
-    return overhead.alternating_pairs(lambda on, tmp, k: _one_run(on, threads, tmp, k, timeout), "render", repeats,
-                                      max_load, lambda r: f"renders, {r['pngs']} PNGs", log)
+    return overhead.alternating_pairs(
+        lambda on, tmp, k: _one_run(on, threads, tmp, k, timeout),
+        "render",
+        repeats,
+        max_load,
+        lambda r: f"renders, {r['pngs']} PNGs",
+        log,
+    )
 
 
 def overhead_table(s: dict, markdown: bool) -> str:

@@ -7,6 +7,7 @@ used more than ``max_load`` cores on average while it ran (``others_busy_mean * 
 "mean load > threads + max_load" without the 1-minute lag of the load average). Loaded runs are
 printed, marked, and left out of the medians.
 """
+
 from __future__ import annotations
 
 import math
@@ -15,17 +16,52 @@ from collections import OrderedDict
 
 from ..params import PHASES
 
-__all__ = ["LABELS", "normalise", "is_loaded", "summarise", "format_table", "scene_tables", "ratio_lines",
-           "scaling_table", "first_frame_table", "table1", "PHASE_SHORT"]
+__all__ = [
+    "LABELS",
+    "normalise",
+    "is_loaded",
+    "summarise",
+    "format_table",
+    "scene_tables",
+    "ratio_lines",
+    "scaling_table",
+    "first_frame_table",
+    "table1",
+    "PHASE_SHORT",
+]
 
-LABELS = {("ours", "ipsph"): "IPSPH", ("ours", "pf"): "PF", ("ours", "dfsph"): "DFSPH",
-          ("peer", "dfsph"): "SPH-DFSPH", ("peer", "pf"): "SPH-PF"}
+LABELS = {
+    ("ours", "ipsph"): "IPSPH",
+    ("ours", "pf"): "PF",
+    ("ours", "dfsph"): "DFSPH",
+    ("peer", "dfsph"): "SPH-DFSPH",
+    ("peer", "pf"): "SPH-PF",
+}
 BASELINE = " (baseline)"  # label suffix of `ipsph bench --baseline DIR` rows
 # per-phase column: our timer name -> short label, in print order
 PHASE_SHORT = OrderedDict((p, short) for p, (short, _) in PHASES.items())
-NUMERIC = ("fluid", "boundary", "steps", "ms_step", "ms_step_mean", "wall_per_sim", "wall_seconds", "err_mean",
-           "err_worst", "err_max", "rss_mb", "others_cores", "loadavg", "first_step_s", "setup_s", "iters_mean",
-           "us_particle_step", "bytes_rss", "bytes_solver", "bytes_pair_cache")
+NUMERIC = (
+    "fluid",
+    "boundary",
+    "steps",
+    "ms_step",
+    "ms_step_mean",
+    "wall_per_sim",
+    "wall_seconds",
+    "err_mean",
+    "err_worst",
+    "err_max",
+    "rss_mb",
+    "others_cores",
+    "loadavg",
+    "first_step_s",
+    "setup_s",
+    "iters_mean",
+    "us_particle_step",
+    "bytes_rss",
+    "bytes_solver",
+    "bytes_pair_cache",
+)
 
 
 def _f(x) -> float:
@@ -47,39 +83,64 @@ def normalise(result: dict, source: str, method: str, scene: str, repeat: int = 
     """Flatten one worker result (``source`` 'ours' or 'peer') into a row with common keys."""
     load = result.get("load") or {}
     others = _f(load.get("others_busy_mean")) * _f(load.get("cpus"))
-    row = {"scene": scene, "source": source, "method": method, "label": LABELS.get((source, method), method),
-           "repeat": repeat, "fluid": result.get("fluid_particles"), "boundary": result.get("boundary_particles"),
-           "steps": result.get("steps"), "wall_per_sim": _f(result.get("wall_seconds_per_sim_second")),
-           "wall_seconds": _f(result.get("wall_seconds")),
-           "err_mean": _f(result.get("density_error_mean_pct")),
-           "err_worst": _f(result.get("density_error_worst_pct")),
-           "err_max": _f(result.get("density_error_max_pct")),
-           "rss_mb": _f(result.get("peak_rss_mb")), "others_cores": others,
-           "loadavg": _f(load.get("loadavg_mean")), "threads": result.get("threads")}
+    row = {
+        "scene": scene,
+        "source": source,
+        "method": method,
+        "label": LABELS.get((source, method), method),
+        "repeat": repeat,
+        "fluid": result.get("fluid_particles"),
+        "boundary": result.get("boundary_particles"),
+        "steps": result.get("steps"),
+        "wall_per_sim": _f(result.get("wall_seconds_per_sim_second")),
+        "wall_seconds": _f(result.get("wall_seconds")),
+        "err_mean": _f(result.get("density_error_mean_pct")),
+        "err_worst": _f(result.get("density_error_worst_pct")),
+        "err_max": _f(result.get("density_error_max_pct")),
+        "rss_mb": _f(result.get("peak_rss_mb")),
+        "others_cores": others,
+        "loadavg": _f(load.get("loadavg_mean")),
+        "threads": result.get("threads"),
+    }
     if source == "ours":
-        row.update(ms_step=_f(result.get("ms_per_step_median")), ms_step_mean=_f(result.get("ms_per_step_mean")),
-                   phases=dict(result.get("phases_ms") or {}), phases_mean=dict(result.get("phases_ms_mean") or {}),
-                   first_step_s=_f(result.get("first_step_seconds")), setup_s=_f(result.get("setup_seconds")),
-                   us_particle_step=_f(result.get("us_per_particle_step")),
-                   bytes_rss=_f(result.get("bytes_per_particle_rss")),
-                   bytes_solver=_f(result.get("bytes_per_particle_solver")),
-                   bytes_pair_cache=_f(result.get("bytes_per_particle_pair_cache")),
-                   backend=result.get("backend", "cpu"), precision=result.get("precision", "float64"),
-                   ns_particle_step=_f(result.get("ns_per_particle_step")),
-                   bytes_device_used=_f(result.get("device_bytes_per_particle_used")),
-                   iters_mean=_f(result.get("pd_passes_mean") if method != "dfsph"
-                                 else result.get("density_iterations_mean")),
-                   div_iters_mean=_f(result.get("divergence_iterations_mean")) if method != "pf" else math.nan)
+        row.update(
+            ms_step=_f(result.get("ms_per_step_median")),
+            ms_step_mean=_f(result.get("ms_per_step_mean")),
+            phases=dict(result.get("phases_ms") or {}),
+            phases_mean=dict(result.get("phases_ms_mean") or {}),
+            first_step_s=_f(result.get("first_step_seconds")),
+            setup_s=_f(result.get("setup_seconds")),
+            us_particle_step=_f(result.get("us_per_particle_step")),
+            bytes_rss=_f(result.get("bytes_per_particle_rss")),
+            bytes_solver=_f(result.get("bytes_per_particle_solver")),
+            bytes_pair_cache=_f(result.get("bytes_per_particle_pair_cache")),
+            backend=result.get("backend", "cpu"),
+            precision=result.get("precision", "float64"),
+            ns_particle_step=_f(result.get("ns_per_particle_step")),
+            bytes_device_used=_f(result.get("device_bytes_per_particle_used")),
+            iters_mean=_f(result.get("pd_passes_mean") if method != "dfsph" else result.get("density_iterations_mean")),
+            div_iters_mean=_f(result.get("divergence_iterations_mean")) if method != "pf" else math.nan,
+        )
     else:
         # SPlisHSPlasH's Timing gives averages only; they stand in for both median and mean phases
         pressure = "densitySolve" if method == "dfsph" else "solvePDConstraints"
-        ph = {"neighbourSearch": result.get("neighborhood_search_ms"), pressure: result.get("pressure_solve_ms"),
-              "divergenceSolve": result.get("divergence_solve_ms"), "step": result.get("step_ms")}
+        ph = {
+            "neighbourSearch": result.get("neighborhood_search_ms"),
+            pressure: result.get("pressure_solve_ms"),
+            "divergenceSolve": result.get("divergence_solve_ms"),
+            "step": result.get("step_ms"),
+        }
         ph = {k: _f(v) for k, v in ph.items() if v is not None}
-        row.update(ms_step=_f(result.get("ms_per_step")), ms_step_mean=_f(result.get("ms_per_step_mean")),
-                   phases=ph, phases_mean=dict(ph), first_step_s=math.nan, setup_s=_f(result.get("init_seconds")),
-                   iters_mean=_f(result.get("iterations_mean")),
-                   div_iters_mean=_f(result.get("divergence_iterations_mean")) if method == "dfsph" else math.nan)
+        row.update(
+            ms_step=_f(result.get("ms_per_step")),
+            ms_step_mean=_f(result.get("ms_per_step_mean")),
+            phases=ph,
+            phases_mean=dict(ph),
+            first_step_s=math.nan,
+            setup_s=_f(result.get("init_seconds")),
+            iters_mean=_f(result.get("iterations_mean")),
+            div_iters_mean=_f(result.get("divergence_iterations_mean")) if method == "dfsph" else math.nan,
+        )
         if row["fluid"]:
             row["us_particle_step"] = 1e3 * row["ms_step"] / row["fluid"]
     return row
@@ -149,15 +210,35 @@ def _phases(row: dict) -> str:
     return ", ".join(parts) or "—"
 
 
-SCENE_HEADERS = ["method", "fluid", "boundary", "steps", "ms/step (median)", "per-phase ms", "s wall / sim s",
-                 "density err mean %", "worst %", "peak RSS MB", "load (others' cores, loadavg)"]
+SCENE_HEADERS = [
+    "method",
+    "fluid",
+    "boundary",
+    "steps",
+    "ms/step (median)",
+    "per-phase ms",
+    "s wall / sim s",
+    "density err mean %",
+    "worst %",
+    "peak RSS MB",
+    "load (others' cores, loadavg)",
+]
 
 
 def _scene_row(label: str, r: dict) -> list[str]:
-    return [label, _int(r.get("fluid")), _int(r.get("boundary")), _int(r.get("steps")), _num(r.get("ms_step")),
-            _phases(r), _num(r.get("wall_per_sim")), _num(r.get("err_mean"), "{:.3f}"),
-            _num(r.get("err_worst"), "{:.3f}"), _num(r.get("rss_mb"), "{:.0f}"),
-            f"{_num(r.get('others_cores'))}, {_num(r.get('loadavg'), '{:.1f}')}"]
+    return [
+        label,
+        _int(r.get("fluid")),
+        _int(r.get("boundary")),
+        _int(r.get("steps")),
+        _num(r.get("ms_step")),
+        _phases(r),
+        _num(r.get("wall_per_sim")),
+        _num(r.get("err_mean"), "{:.3f}"),
+        _num(r.get("err_worst"), "{:.3f}"),
+        _num(r.get("rss_mb"), "{:.0f}"),
+        f"{_num(r.get('others_cores'))}, {_num(r.get('loadavg'), '{:.1f}')}",
+    ]
 
 
 def scene_tables(groups, markdown: bool, max_load: float) -> str:
@@ -189,9 +270,11 @@ def scene_tables(groups, markdown: bool, max_load: float) -> str:
         if notes:
             block += [""] + [("- " if markdown else "") + "note: " + n for n in notes]
         out.append("\n".join(block))
-    legend = (f"Medians over quiet runs; a run is 'loaded' when other processes used more than {max_load:g} "
-              f"cores on average (it is shown, not counted). per-phase: {', '.join(f'{s} = {k}' for k, s in PHASE_SHORT.items())}; "
-              f"ours: medians per step, SPlisHSPlasH: its Timing averages.")
+    legend = (
+        f"Medians over quiet runs; a run is 'loaded' when other processes used more than {max_load:g} "
+        f"cores on average (it is shown, not counted). per-phase: {', '.join(f'{s} = {k}' for k, s in PHASE_SHORT.items())}; "
+        f"ours: medians per step, SPlisHSPlasH: its Timing averages."
+    )
     return "\n\n".join(out + [legend])
 
 
@@ -217,8 +300,10 @@ def ratio_lines(groups, scene: str) -> list[str]:
         c, d = _f(ours.get("ms_step")), _f(p.get("ms_step"))
         q = 3 if other.endswith(BASELINE) else 2  # an A/B of one build against another: finer
         if b > 0 and d > 0 and not math.isnan(a):
-            lines.append(f"{mine} / {other.strip()}: wall per simulated second {a / b:.{q}f}x, ms per step "
-                         f"{c / d:.{q}f}x{note}" + _round_ratios(here[mine]["quiet"], here[other]["quiet"], q))
+            lines.append(
+                f"{mine} / {other.strip()}: wall per simulated second {a / b:.{q}f}x, ms per step "
+                f"{c / d:.{q}f}x{note}" + _round_ratios(here[mine]["quiet"], here[other]["quiet"], q)
+            )
     return lines
 
 
@@ -237,28 +322,52 @@ def _round_ratios(ours: list[dict], peer: list[dict], q: int = 2) -> str:
     return f"; same round {' '.join(f'{x:.{q}f}' for x in pairs)}, fastest/fastest {fastest:.{q}f}x"
 
 
-SCALING_HEADERS = ["method", "fluid", "boundary", "timed steps", "ms/step (median)", "us / fluid particle-step",
-                   "iterations (pressure / divergence)", "density err mean %",
-                   "bytes / particle (RSS)", "bytes / particle (solver arrays)", "of which pair cache",
-                   "peak RSS MB", "setup s",
-                   "load (others' cores)"]
+SCALING_HEADERS = [
+    "method",
+    "fluid",
+    "boundary",
+    "timed steps",
+    "ms/step (median)",
+    "us / fluid particle-step",
+    "iterations (pressure / divergence)",
+    "density err mean %",
+    "bytes / particle (RSS)",
+    "bytes / particle (solver arrays)",
+    "of which pair cache",
+    "peak RSS MB",
+    "setup s",
+    "load (others' cores)",
+]
 
 
 def scaling_table(rows: list[dict], markdown: bool, max_load: float) -> str:
     body = []
     for r in rows:
         if r.get("error"):
-            body.append([r["label"], _int(r.get("target")), "—", "—", "failed: " + r["error"].splitlines()[0]]
-                        + ["—"] * (len(SCALING_HEADERS) - 5))
+            body.append(
+                [r["label"], _int(r.get("target")), "—", "—", "failed: " + r["error"].splitlines()[0]]
+                + ["—"] * (len(SCALING_HEADERS) - 5)
+            )
             continue
         label = r["label"] + (" [loaded]" if is_loaded(r, max_load) else "")
-        body.append([label, _int(r.get("fluid")), _int(r.get("boundary")), _int(r.get("timed_steps")),
-                     _num(r.get("ms_step")), _num(r.get("us_particle_step"), "{:.3f}"),
-                     f'{_num(r.get("iters_mean"), "{:.1f}")} / {_num(r.get("div_iters_mean"), "{:.1f}")}',
-                     _num(r.get("err_mean"), "{:.2g}"),
-                     _num(r.get("bytes_rss"), "{:.0f}"), _num(r.get("bytes_solver"), "{:.0f}"),
-                     _num(r.get("bytes_pair_cache"), "{:.0f}"),
-                     _num(r.get("rss_mb"), "{:.0f}"), _num(r.get("setup_s"), "{:.1f}"), _num(r.get("others_cores"))])
+        body.append(
+            [
+                label,
+                _int(r.get("fluid")),
+                _int(r.get("boundary")),
+                _int(r.get("timed_steps")),
+                _num(r.get("ms_step")),
+                _num(r.get("us_particle_step"), "{:.3f}"),
+                f"{_num(r.get('iters_mean'), '{:.1f}')} / {_num(r.get('div_iters_mean'), '{:.1f}')}",
+                _num(r.get("err_mean"), "{:.2g}"),
+                _num(r.get("bytes_rss"), "{:.0f}"),
+                _num(r.get("bytes_solver"), "{:.0f}"),
+                _num(r.get("bytes_pair_cache"), "{:.0f}"),
+                _num(r.get("rss_mb"), "{:.0f}"),
+                _num(r.get("setup_s"), "{:.1f}"),
+                _num(r.get("others_cores")),
+            ]
+        )
     return format_table(SCALING_HEADERS, body, markdown)
 
 
@@ -268,24 +377,41 @@ def backend_scaling_table(rows: list[dict], markdown: bool, max_load: float) -> 
     arrays: device arrays for cuda; and what the device's free memory dropped by), wall seconds per
     simulated second, the density error."""
     phases = [p for p in PHASE_SHORT if any(p in (r.get("phases") or {}) for r in rows if not r.get("error"))]
-    headers = (["backend", "method", "fluid", "timed steps", "ms/step (median)"]
-               + [f"ms {PHASE_SHORT[p]}" for p in phases]
-               + ["ns / fluid particle-step", "bytes / particle (arrays)", "bytes / particle (device used)",
-                  "wall s / simulated s", "density err mean %", "load (others' cores)"])
+    headers = (
+        ["backend", "method", "fluid", "timed steps", "ms/step (median)"]
+        + [f"ms {PHASE_SHORT[p]}" for p in phases]
+        + [
+            "ns / fluid particle-step",
+            "bytes / particle (arrays)",
+            "bytes / particle (device used)",
+            "wall s / simulated s",
+            "density err mean %",
+            "load (others' cores)",
+        ]
+    )
     body = []
     for r in rows:
-        where = f'{r.get("backend", "?")} {r.get("precision", "")}'.strip()
+        where = f"{r.get('backend', '?')} {r.get('precision', '')}".strip()
         if r.get("error"):
-            body.append([where, r["label"], _int(r.get("target")), "—", "failed: " + r["error"].splitlines()[0]]
-                        + ["—"] * (len(headers) - 5))
+            body.append(
+                [where, r["label"], _int(r.get("target")), "—", "failed: " + r["error"].splitlines()[0]]
+                + ["—"] * (len(headers) - 5)
+            )
             continue
         label = r["label"] + (" [loaded]" if is_loaded(r, max_load) else "")
         ph = r.get("phases") or {}
-        body.append([where, label, _int(r.get("fluid")), _int(r.get("timed_steps")), _num(r.get("ms_step"))]
-                    + [_num(ph.get(p)) for p in phases]
-                    + [_num(r.get("ns_particle_step"), "{:.1f}"), _num(r.get("bytes_solver"), "{:.0f}"),
-                       _num(r.get("bytes_device_used"), "{:.0f}"), _num(r.get("wall_per_sim"), "{:.1f}"),
-                       _num(r.get("err_mean"), "{:.2g}"), _num(r.get("others_cores"))])
+        body.append(
+            [where, label, _int(r.get("fluid")), _int(r.get("timed_steps")), _num(r.get("ms_step"))]
+            + [_num(ph.get(p)) for p in phases]
+            + [
+                _num(r.get("ns_particle_step"), "{:.1f}"),
+                _num(r.get("bytes_solver"), "{:.0f}"),
+                _num(r.get("bytes_device_used"), "{:.0f}"),
+                _num(r.get("wall_per_sim"), "{:.1f}"),
+                _num(r.get("err_mean"), "{:.2g}"),
+                _num(r.get("others_cores")),
+            ]
+        )
     return format_table(headers, body, markdown)
 
 
@@ -306,32 +432,66 @@ def first_frame_table(rows: list[dict], markdown: bool, target: dict | float = 5
     for cache in ("cold", "warm"):
         group = [r for r in rows if r.get("cache") == cache]
         for r in group:
-            body.append([f"{cache} (run {r.get('repeat', 0) + 1})"] + [_num(v) for v in cells(r)]
-                        + ["yes" if r.get("ok") else f"no (exit {r.get('exit_code')})", _num(r.get("others_cores")), ""])
+            body.append(
+                [f"{cache} (run {r.get('repeat', 0) + 1})"]
+                + [_num(v) for v in cells(r)]
+                + ["yes" if r.get("ok") else f"no (exit {r.get('exit_code')})", _num(r.get("others_cores")), ""]
+            )
         ok = [r for r in group if r.get("ok")]
         if ok:
             med = [statistics.median(c) for c in zip(*(cells(r) for r in ok))]
             goal = targets.get(cache)
             verdict = "" if goal is None else ("meets" if med[0] <= goal else "misses") + f" {goal:g} s"
-            body.append([f"**{cache}: median of {len(ok)}**" if markdown else f"{cache}: median of {len(ok)}"]
-                        + [_num(v) for v in med] + ["", _num(statistics.median(_f(r.get("others_cores")) for r in ok)),
-                                                     verdict])
-    return format_table(["numba cache", "seconds to first frame", "process launch + exit",
-                         "setup (imports, scene, sampling; no compiling)", "Numba compiling", "stepping", "ok",
-                         "load (others' cores)", "target"], body, markdown)
+            body.append(
+                [f"**{cache}: median of {len(ok)}**" if markdown else f"{cache}: median of {len(ok)}"]
+                + [_num(v) for v in med]
+                + ["", _num(statistics.median(_f(r.get("others_cores")) for r in ok)), verdict]
+            )
+    return format_table(
+        [
+            "numba cache",
+            "seconds to first frame",
+            "process launch + exit",
+            "setup (imports, scene, sampling; no compiling)",
+            "Numba compiling",
+            "stepping",
+            "ok",
+            "load (others' cores)",
+            "target",
+        ],
+        body,
+        markdown,
+    )
 
 
-TABLE1_HEADERS = ["scene (fluid particles)", "method", "steps", "avg divergenceSolve ms",
-                  "avg solvePDConstraints ms", "avg densitySolve ms", "avg ms / step", "s wall / sim s",
-                  "density err mean %", "worst %"]
+TABLE1_HEADERS = [
+    "scene (fluid particles)",
+    "method",
+    "steps",
+    "avg divergenceSolve ms",
+    "avg solvePDConstraints ms",
+    "avg densitySolve ms",
+    "avg ms / step",
+    "s wall / sim s",
+    "density err mean %",
+    "worst %",
+]
 
 
 def _table1_row(scene: str, label: str, r: dict) -> list[str]:
     ph = r.get("phases_mean") or {}
-    return [f"{scene} ({_int(r.get('fluid'))})", label, _int(r.get("steps")),
-            _num(ph.get("divergenceSolve")), _num(ph.get("solvePDConstraints")), _num(ph.get("densitySolve")),
-            _num(r.get("ms_step_mean")), _num(r.get("wall_per_sim")), _num(r.get("err_mean"), "{:.3f}"),
-            _num(r.get("err_worst"), "{:.3f}")]
+    return [
+        f"{scene} ({_int(r.get('fluid'))})",
+        label,
+        _int(r.get("steps")),
+        _num(ph.get("divergenceSolve")),
+        _num(ph.get("solvePDConstraints")),
+        _num(ph.get("densitySolve")),
+        _num(r.get("ms_step_mean")),
+        _num(r.get("wall_per_sim")),
+        _num(r.get("err_mean"), "{:.3f}"),
+        _num(r.get("err_worst"), "{:.3f}"),
+    ]
 
 
 def table1(groups, markdown: bool) -> str:
@@ -340,8 +500,11 @@ def table1(groups, markdown: bool) -> str:
     body, notes = [], []
     for (scene, label), g in groups.items():
         if g["median"] is not None:
-            body.append(_table1_row(scene, label + (f" (median of {len(g['quiet'])})" if len(g["quiet"]) > 1
-                                                     else ""), g["median"]))
+            body.append(
+                _table1_row(
+                    scene, label + (f" (median of {len(g['quiet'])})" if len(g["quiet"]) > 1 else ""), g["median"]
+                )
+            )
         for r in g["loaded"]:
             body.append(_table1_row(scene, f"{label} [loaded, run {r.get('repeat', 0) + 1}]", r))
         for r in g["failed"]:

@@ -10,6 +10,7 @@
   at r = 0.025 m in a tank 2.5 columns long (so the count is exact and nothing is written to disk).
   ``scaling_peer_scene`` writes the same dam break as a SPlisHSPlasH scene for the peer's rows.
 """
+
 from __future__ import annotations
 
 import json
@@ -22,16 +23,26 @@ from ..params import spacing
 from ..model import TimeStepConfig
 from ..scene import lattice_counts
 
-__all__ = ["DEFAULT_SCENES", "PIPELINES", "resolve_scene", "pipeline_path",
-           "scaling_overrides", "scaling_count", "scaling_dt_max",
-           "scaling_peer_scene"]
+__all__ = [
+    "DEFAULT_SCENES",
+    "PIPELINES",
+    "resolve_scene",
+    "pipeline_path",
+    "scaling_overrides",
+    "scaling_count",
+    "scaling_dt_max",
+    "scaling_peer_scene",
+]
 
 DEFAULT_SCENES = ("DamBreakModel", "DoubleDamBreak")
 _REPO_ROOT = Path(__file__).resolve().parents[2]
 _STOCK_SUBDIR = Path("tests") / "data" / "splishsplash" / "Scenes"  # tests/data/splishsplash/PROVENANCE.md
 # Table 1 case -> (pipeline file stem, the SPlisHSPlasH stock scene for the same case)
-PIPELINES = {"breaking_dam": "DamBreakModel", "double_dam_break": "DoubleDamBreak",
-             "two_dragons": "DamBreakModelDragons"}
+PIPELINES = {
+    "breaking_dam": "DamBreakModel",
+    "double_dam_break": "DoubleDamBreak",
+    "two_dragons": "DamBreakModelDragons",
+}
 
 
 def _candidates(scene_dir: str | Path | None) -> list[Path]:
@@ -58,8 +69,10 @@ def resolve_scene(name_or_path: str, scene_dir: str | Path | None = None) -> Pat
         tried.append(str(p))
         if p.is_file():
             return p.resolve()
-    raise ConfigError(f"bench scene {name_or_path!r} not found (looked for {', '.join(tried)}); pass a scene "
-                      f"file path, or the SPlisHSPlasH Scenes folder with --scene-dir")
+    raise ConfigError(
+        f"bench scene {name_or_path!r} not found (looked for {', '.join(tried)}); pass a scene "
+        f"file path, or the SPlisHSPlasH Scenes folder with --scene-dir"
+    )
 
 
 def pipeline_path(stem: str) -> Path:
@@ -98,9 +111,13 @@ def scaling_overrides(n_target: int, radius: float = 0.025) -> list[str]:
     (the column and tank of `_scaling_boxes`)."""
     column, tank = _scaling_boxes(n_target, radius)
     vec = lambda v: "[" + ", ".join(repr(round(x, 9)) for x in v) + "]"  # noqa: E731
-    return [f"simulation.particle_radius={radius!r}", "fluid.0.box.min=[0.0, 0.0, 0.0]",
-            f"fluid.0.box.max={vec(column)}", "boundary.0.box.min=[0.0, 0.0, 0.0]",
-            f"boundary.0.box.max={vec(tank)}"]
+    return [
+        f"simulation.particle_radius={radius!r}",
+        "fluid.0.box.min=[0.0, 0.0, 0.0]",
+        f"fluid.0.box.max={vec(column)}",
+        "boundary.0.box.min=[0.0, 0.0, 0.0]",
+        f"boundary.0.box.max={vec(tank)}",
+    ]
 
 
 def scaling_count(n_target: int, radius: float = 0.025) -> int:
@@ -136,13 +153,31 @@ def scaling_peer_scene(n_target: int, folder: Path, radius: float = 0.025) -> Pa
     dt_max = scaling_dt_max(radius)
     scene = {
         "Configuration": {
-            "particleRadius": radius, "gravitation": [0.0, -9.81, 0.0],  # the method: run_peer's
-            "timeStepSize": dt_max, "cflMethod": 1, "cflFactor": 1.0, "cflMaxTimeStepSize": dt_max,
+            "particleRadius": radius,
+            "gravitation": [0.0, -9.81, 0.0],  # the method: run_peer's
+            "timeStepSize": dt_max,
+            "cflMethod": 1,
+            "cflFactor": 1.0,
+            "cflMaxTimeStepSize": dt_max,
             "boundaryHandlingMethod": 0,
-            "DFSPH": {"minIterations": 2, "maxIterations": 100, "maxError": 0.05, "maxIterationsV": 100,
-                      "maxErrorV": 0.1, "enableDivergenceSolver": True}},
-        "Materials": [{"id": "Fluid", "density0": 1000.0, "viscosityMethod": 2, "viscosity": 0.01,
-                       "XSPH viscosity": {"viscosity": 0.01}}],
+            "DFSPH": {
+                "minIterations": 2,
+                "maxIterations": 100,
+                "maxError": 0.05,
+                "maxIterationsV": 100,
+                "maxErrorV": 0.1,
+                "enableDivergenceSolver": True,
+            },
+        },
+        "Materials": [
+            {
+                "id": "Fluid",
+                "density0": 1000.0,
+                "viscosityMethod": 2,
+                "viscosity": 0.01,
+                "XSPH viscosity": {"viscosity": 0.01},
+            }
+        ],
         "RigidBodies": [{"geometryFile": str(mesh.resolve()), "isDynamic": False, "isWall": True}],
         "FluidBlocks": [{"denseMode": 0, "start": [0.0, 0.0, 0.0], "end": list(column)}],
     }

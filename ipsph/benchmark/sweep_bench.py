@@ -17,6 +17,7 @@ Per repeat (sweep first, then the sequential runs, so machine noise falls on bot
 Figures are medians over the repeats; a repeat during which other processes used more than --max-load
 cores is flagged (this machine is shared).
 """
+
 from __future__ import annotations
 
 import shutil
@@ -41,6 +42,7 @@ def bench_sweep(end_time: float, repeats: int, max_load: float, timeout: float, 
     from ..ensemble import engine, records, spec
     from ..scene import default_scene_path
     from .machine import LoadSampler, timed_ipsph_run
+
     rows = []
     with tempfile.TemporaryDirectory(prefix="ipsph-bench-sweep-") as tmp:
         tmp = Path(tmp)
@@ -51,8 +53,12 @@ def bench_sweep(end_time: float, repeats: int, max_load: float, timeout: float, 
             out = tmp / f"sweep-{rep}"
             sampler = LoadSampler(0.5).start()
             t0 = time.perf_counter()
-            code, recs = engine.run_sweep(f, engine.SweepOptions(out=out, workers=2, threads_per_worker=1,
-                                                                 progress=False, dashboard_address="127.0.0.1:0"))
+            code, recs = engine.run_sweep(
+                f,
+                engine.SweepOptions(
+                    out=out, workers=2, threads_per_worker=1, progress=False, dashboard_address="127.0.0.1:0"
+                ),
+            )
             wall = time.perf_counter() - t0
             load = sampler.stop()
             if code != 0:
@@ -62,13 +68,21 @@ def bench_sweep(end_time: float, repeats: int, max_load: float, timeout: float, 
             for r in recs:
                 per_worker[r["worker_pid"]] = per_worker.get(r["worker_pid"], 0.0) + r["wall_seconds"]
             makespan = max(per_worker.values())
-            row = {"repeat": rep, "sweep_wall": wall, "makespan": makespan, "timings": timings,
-                   "member_walls": {r["name"]: r["wall_seconds"] for r in recs},
-                   "member_loops": {r["name"]: r["run_wall_seconds"] for r in recs},
-                   "workers_used": len(per_worker), "sweep_others_cores": load.others_busy_mean * load.cpus}
-            log(f"[{rep + 1}/{repeats}] sweep 2 x 1 thread: {wall:.1f} s (cluster start {timings['cluster_start']:.1f} s, "
+            row = {
+                "repeat": rep,
+                "sweep_wall": wall,
+                "makespan": makespan,
+                "timings": timings,
+                "member_walls": {r["name"]: r["wall_seconds"] for r in recs},
+                "member_loops": {r["name"]: r["run_wall_seconds"] for r in recs},
+                "workers_used": len(per_worker),
+                "sweep_others_cores": load.others_busy_mean * load.cpus,
+            }
+            log(
+                f"[{rep + 1}/{repeats}] sweep 2 x 1 thread: {wall:.1f} s (cluster start {timings['cluster_start']:.1f} s, "
                 f"members {timings['members']:.1f} s, makespan {makespan:.1f} s), others "
-                f"{row['sweep_others_cores']:.2f} cores")
+                f"{row['sweep_others_cores']:.2f} cores"
+            )
             shutil.rmtree(out, ignore_errors=True)
             seq, seq_load = 0.0, []
             for m in members:
@@ -84,9 +98,11 @@ def bench_sweep(end_time: float, repeats: int, max_load: float, timeout: float, 
             row["overhead_per_member"] = (wall - makespan) / len(members)
             row["dispatch_per_member"] = (timings["members"] - makespan) / len(members)
             row["loaded"] = max(row["sweep_others_cores"], row["sequential_others_cores"]) > max_load
-            log(f"[{rep + 1}/{repeats}] 4 x ipsph run --threads 2 one after another: {seq:.1f} s, others "
+            log(
+                f"[{rep + 1}/{repeats}] 4 x ipsph run --threads 2 one after another: {seq:.1f} s, others "
                 f"{row['sequential_others_cores']:.2f} cores; ratio {row['ratio']:.2f}"
-                + (" LOADED" if row["loaded"] else ""))
+                + (" LOADED" if row["loaded"] else "")
+            )
             rows.append(row)
     return {"end_time": end_time, "members": [m.name for m in members], "rows": rows}
 
@@ -106,13 +122,21 @@ def table(result: dict, markdown: bool, max_load: float) -> str:
         ("ratio sequential / sweep", f"{med('ratio'):.2f}"),
         ("overhead per member, all in [s]", f"{med('overhead_per_member'):.2f}"),
         ("dispatch overhead per member (no cluster start/close) [s]", f"{med('dispatch_per_member'):.2f}"),
-        ("repeats counted / run", f"{sum(not r['loaded'] for r in rows)} / {len(rows)}"
-         + ("" if any(not r["loaded"] for r in rows) else " (all loaded: medians over all)")),
-        ("others' load (sweep / sequential) [cores]", f"{statistics.median(r['sweep_others_cores'] for r in rows):.2f}"
-                                                      f" / {statistics.median(r['sequential_others_cores'] for r in rows):.2f}"),
+        (
+            "repeats counted / run",
+            f"{sum(not r['loaded'] for r in rows)} / {len(rows)}"
+            + ("" if any(not r["loaded"] for r in rows) else " (all loaded: medians over all)"),
+        ),
+        (
+            "others' load (sweep / sequential) [cores]",
+            f"{statistics.median(r['sweep_others_cores'] for r in rows):.2f}"
+            f" / {statistics.median(r['sequential_others_cores'] for r in rows):.2f}",
+        ),
     ]
-    head = (f"4 members (default dam break, {' '.join(result['members'])}), {result['end_time']} simulated s "
-            f"each, no renders; medians; loaded = others used > {max_load} cores")
+    head = (
+        f"4 members (default dam break, {' '.join(result['members'])}), {result['end_time']} simulated s "
+        f"each, no renders; medians; loaded = others used > {max_load} cores"
+    )
     if markdown:
         return head + "\n\n| figure | value |\n|---|---|\n" + "\n".join(f"| {a.strip()} | {b} |" for a, b in figures)
     w = max(len(a) for a, _ in figures)

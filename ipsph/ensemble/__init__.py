@@ -9,6 +9,7 @@
 
 Dask distributed is imported only when a sweep runs (`pip install 'ipsph[sweep]'`).
 """
+
 from .engine import SweepOptions, run_sweep, sweep
 
 __all__ = ["sweep", "run_sweep", "SweepOptions"]

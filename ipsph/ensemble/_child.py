@@ -6,6 +6,7 @@ its member down the way Ctrl-C does (the current step finishes, a final frame an
 are written), so the rerun on another worker continues from that checkpoint, and no orphaned
 simulation goes on writing into the folder. Then it is exactly `ipsph run` (`ipsph.cli.main`).
 """
+
 from __future__ import annotations
 
 import os
@@ -17,6 +18,7 @@ def _die_with_parent(parent: int) -> None:
     if not sys.platform.startswith("linux"):
         return
     import ctypes
+
     try:
         libc = ctypes.CDLL(None, use_errno=True)
         libc.prctl(1, int(signal.SIGTERM), 0, 0, 0)  # PR_SET_PDEATHSIG = 1
@@ -31,4 +33,5 @@ if __name__ == "__main__":
     if want and want.isdigit():
         _die_with_parent(int(want))
     from ipsph.cli import main
+
     sys.exit(main(sys.argv[1:]))

@@ -3,6 +3,7 @@
 Ctrl-C sends SIGINT to the whole foreground process group, which holds the LocalCluster's worker
 processes too; a worker that died of it would have its member rescheduled instead of stopped.
 The workers ignore SIGINT, and the sweep's client stops their members (member.stop_members)."""
+
 import signal
 import threading
 

@@ -16,6 +16,7 @@ Faults: a failing member is recorded and the others go on; a worker that dies ha
 rerun by Dask (from the checkpoint the dying member wrote); Ctrl-C asks every running member
 to write a checkpoint and stop, records them as interrupted and exits 130.
 """
+
 from __future__ import annotations
 
 import logging
@@ -40,8 +41,8 @@ DEFAULT_DASHBOARD = "127.0.0.1:8787"
 @dataclass
 class SweepOptions:
     out: Path
-    scheduler: str | None = None          # join this Dask scheduler instead of a LocalCluster
-    workers: int | None = None            # LocalCluster workers (default: cores // threads_per_worker)
+    scheduler: str | None = None  # join this Dask scheduler instead of a LocalCluster
+    workers: int | None = None  # LocalCluster workers (default: cores // threads_per_worker)
     threads_per_worker: int | None = None  # LocalCluster threads per worker = each member's Numba threads
     resume: bool = False
     overwrite: bool = False
@@ -49,7 +50,7 @@ class SweepOptions:
     max_particles: int | None = None
     progress: bool = True
     dashboard_address: str = DEFAULT_DASHBOARD
-    wait_workers: float = 60.0            # --scheduler: seconds to wait for the first worker
+    wait_workers: float = 60.0  # --scheduler: seconds to wait for the first worker
     extra_set: list[str] = field(default_factory=list)
 
 
@@ -83,15 +84,27 @@ def _need_distributed() -> None:
     try:
         import distributed  # noqa: F401
     except ImportError as exc:
-        raise InputError("ipsph sweep needs Dask distributed, which is not installed: "
-                         "pip install 'ipsph[sweep]' (or pip install distributed)") from exc
+        raise InputError(
+            "ipsph sweep needs Dask distributed, which is not installed: "
+            "pip install 'ipsph[sweep]' (or pip install distributed)"
+        ) from exc
 
 
 # -- the output folder -------------------------------------------------------------------------
 def _member_entry(sweep: Sweep, m) -> dict:
-    return {"name": m.name, "folder": m.name, "parameters": m.params(), "varied": dict(m.varied),
-            "status": "pending", "exit_code": None, "reason": None, "wall_seconds": None,
-            "threads": None, "host": None, "attempts": 0}
+    return {
+        "name": m.name,
+        "folder": m.name,
+        "parameters": m.params(),
+        "varied": dict(m.varied),
+        "status": "pending",
+        "exit_code": None,
+        "reason": None,
+        "wall_seconds": None,
+        "threads": None,
+        "host": None,
+        "attempts": 0,
+    }
 
 
 def plan(sweep: Sweep, out: Path, resume: bool, overwrite: bool) -> tuple[list[dict], list[str]]:
@@ -119,21 +132,28 @@ def plan(sweep: Sweep, out: Path, resume: bool, overwrite: bool) -> tuple[list[d
                     why = f"member {n} has other parameters"
                     break
         if why:
-            raise OutputError(f"{out} holds a different sweep ({why}); pass --overwrite to replace it or "
-                              f"choose another -o")
+            raise OutputError(
+                f"{out} holds a different sweep ({why}); pass --overwrite to replace it or choose another -o"
+            )
         recs = []
         for n, r in fresh.items():
             o = old_members[n]
-            r.update({k: o.get(k) for k in ("status", "exit_code", "reason", "wall_seconds", "threads", "host",
-                                             "attempts", "resumed")})
+            r.update(
+                {
+                    k: o.get(k)
+                    for k in ("status", "exit_code", "reason", "wall_seconds", "threads", "host", "attempts", "resumed")
+                }
+            )
             recs.append(r)
     else:
         recs = list(fresh.values())
         if not overwrite:
             for r in recs:
                 if (out / r["name"] / "run.json").exists():
-                    raise OutputError(f"{out / r['name']} holds an earlier run that is not part of a sweep in "
-                                      f"{out}; pass --overwrite to replace it or choose another -o")
+                    raise OutputError(
+                        f"{out / r['name']} holds an earlier run that is not part of a sweep in "
+                        f"{out}; pass --overwrite to replace it or choose another -o"
+                    )
     if overwrite:
         for r in recs:
             r.update(_member_entry(sweep, next(m for m in sweep.members if m.name == r["name"])))
@@ -147,12 +167,21 @@ def plan(sweep: Sweep, out: Path, resume: bool, overwrite: bool) -> tuple[list[d
                 r["status"] = "pending"
             todo.append(r["name"])
     if old is not None and todo and len(todo) < len(recs) and not resume:
-        raise OutputError(f"{out} holds an unfinished sweep ({len(recs) - len(todo)} of {len(recs)} members "
-                          f"completed); pass --resume to run the other {len(todo)}, or --overwrite to start afresh")
-    if old is not None and todo and len(todo) == len(recs) and not resume and any(
-            mem.folder_state(out / n) != "empty" for n in todo):
-        raise OutputError(f"{out} holds an unfinished sweep (no member completed); pass --resume to continue "
-                          f"it, or --overwrite to start afresh")
+        raise OutputError(
+            f"{out} holds an unfinished sweep ({len(recs) - len(todo)} of {len(recs)} members "
+            f"completed); pass --resume to run the other {len(todo)}, or --overwrite to start afresh"
+        )
+    if (
+        old is not None
+        and todo
+        and len(todo) == len(recs)
+        and not resume
+        and any(mem.folder_state(out / n) != "empty" for n in todo)
+    ):
+        raise OutputError(
+            f"{out} holds an unfinished sweep (no member completed); pass --resume to continue "
+            f"it, or --overwrite to start afresh"
+        )
     return recs, todo
 
 
@@ -172,10 +201,19 @@ def prepare(sweep: Sweep, out: Path, overwrite: bool, recs: list[dict], old: dic
 def start_local_cluster(workers: int, threads: int, dashboard_address: str):
     """A LocalCluster listening on 127.0.0.1 only; each worker offers one member slot (RESOURCE)."""
     from distributed import LocalCluster
-    return LocalCluster(n_workers=workers, threads_per_worker=threads, processes=True, host="127.0.0.1",
-                        dashboard_address=dashboard_address, worker_dashboard_address=None,
-                        resources={mem.RESOURCE: 1}, memory_limit=0, silence_logs=logging.ERROR,
-                        preload=["ipsph.ensemble._worker_setup"])
+
+    return LocalCluster(
+        n_workers=workers,
+        threads_per_worker=threads,
+        processes=True,
+        host="127.0.0.1",
+        dashboard_address=dashboard_address,
+        worker_dashboard_address=None,
+        resources={mem.RESOURCE: 1},
+        memory_limit=0,
+        silence_logs=logging.ERROR,
+        preload=["ipsph.ensemble._worker_setup"],
+    )
 
 
 def check_shared_folder(client, out: Path) -> None:
@@ -192,9 +230,11 @@ def check_shared_folder(client, out: Path) -> None:
     bad = {a: r for a, r in answers.items() if r is not True}
     if bad:
         addr, why = next(iter(bad.items()))
-        raise OutputError(f"{len(bad)} of {len(answers)} workers cannot use {out.resolve()} ({addr}: {why}); "
-                          f"the sweep's output folder must be on a filesystem every worker shares, "
-                          f"at the same path")
+        raise OutputError(
+            f"{len(bad)} of {len(answers)} workers cannot use {out.resolve()} ({addr}: {why}); "
+            f"the sweep's output folder must be on a filesystem every worker shares, "
+            f"at the same path"
+        )
 
 
 def _scheduler_info(client, n_workers: int) -> dict:
@@ -233,9 +273,12 @@ class Progress:
     def show(self, recs: list[dict], eta: bool = True) -> None:
         c = records.counts(recs)
         pend = c.get("pending", 0) + c.get("running", 0)
-        line = (f"{c.get('completed', 0)}/{self.total} done, {c.get('running', 0)} running, "
-                f"{c.get('failed', 0)} failed" + (f", {c['interrupted']} interrupted" if c.get("interrupted") else "")
-                + f", {c.get('pending', 0)} waiting")
+        line = (
+            f"{c.get('completed', 0)}/{self.total} done, {c.get('running', 0)} running, "
+            f"{c.get('failed', 0)} failed"
+            + (f", {c['interrupted']} interrupted" if c.get("interrupted") else "")
+            + f", {c.get('pending', 0)} waiting"
+        )
         now = time.time()
         if line != self.last_line or now - self.last_print > 30:
             tail = f"; {self.eta(pend)}" if pend and eta else ""
@@ -255,8 +298,10 @@ def run_sweep(sweep_file: str | Path, opts: SweepOptions) -> tuple[int, list[dic
         n_workers, n_threads = local_layout(opts.workers, opts.threads_per_worker)
     else:
         if opts.workers is not None or opts.threads_per_worker is not None:
-            raise InputError("--workers / --threads-per-worker size a LocalCluster; with --scheduler the cluster "
-                             "decides (each member uses its worker's threads)")
+            raise InputError(
+                "--workers / --threads-per-worker size a LocalCluster; with --scheduler the cluster "
+                "decides (each member uses its worker's threads)"
+            )
         n_workers, n_threads = 1, None
     _need_distributed()
     validate(sweep, opts.max_particles, concurrent=n_workers)
@@ -270,8 +315,13 @@ def run_sweep(sweep_file: str | Path, opts: SweepOptions) -> tuple[int, list[dic
     varied = [k for k, _ in sweep.grid] + [k for k, _ in sweep.zipped]
     params = {r["name"]: r["parameters"] for r in recs}
     timings = {"validate": time.perf_counter() - t_begin}  # seconds per phase (ipsph bench --sweep reads them)
-    info = {**sweep.as_dict(), "out": str(out_abs), "members_total": len(recs),
-            "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "timings_s": timings}
+    info = {
+        **sweep.as_dict(),
+        "out": str(out_abs),
+        "members_total": len(recs),
+        "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        "timings_s": timings,
+    }
     by_name = {r["name"]: r for r in recs}
 
     def save() -> None:
@@ -280,16 +330,24 @@ def run_sweep(sweep_file: str | Path, opts: SweepOptions) -> tuple[int, list[dic
 
     save()
     from distributed import Client
+
     cluster = None
     sweep_id = uuid.uuid4().hex[:12]
     t0 = time.perf_counter()
     if opts.scheduler is None:
-        _log(f"{len(todo)} of {len(recs)} members to run; starting a LocalCluster on 127.0.0.1: {n_workers} "
-             f"workers x {n_threads} threads", opts)
+        _log(
+            f"{len(todo)} of {len(recs)} members to run; starting a LocalCluster on 127.0.0.1: {n_workers} "
+            f"workers x {n_threads} threads",
+            opts,
+        )
         cluster = start_local_cluster(n_workers, n_threads, opts.dashboard_address)
         client = Client(cluster)
-        info["scheduler"] = {"kind": "LocalCluster", "address": cluster.scheduler_address,
-                             "workers": n_workers, "threads_per_worker": n_threads}
+        info["scheduler"] = {
+            "kind": "LocalCluster",
+            "address": cluster.scheduler_address,
+            "workers": n_workers,
+            "threads_per_worker": n_threads,
+        }
     else:
         _log(f"{len(todo)} of {len(recs)} members to run; joining the Dask scheduler at {opts.scheduler}", opts)
         try:
@@ -303,8 +361,9 @@ def run_sweep(sweep_file: str | Path, opts: SweepOptions) -> tuple[int, list[dic
             try:
                 client.wait_for_workers(1, timeout=opts.wait_workers)
             except TimeoutError as exc:
-                raise InputError(f"--scheduler {opts.scheduler}: no worker joined within {opts.wait_workers:.0f} s")\
-                    from exc
+                raise InputError(
+                    f"--scheduler {opts.scheduler}: no worker joined within {opts.wait_workers:.0f} s"
+                ) from exc
         timings["cluster_start"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         check_shared_folder(client, out)
@@ -312,15 +371,19 @@ def run_sweep(sweep_file: str | Path, opts: SweepOptions) -> tuple[int, list[dic
         workers = _scheduler_info(client, -1)["workers"]
         exclusive = not all(mem.RESOURCE in (w.get("resources") or {}) for w in workers.values())
         if exclusive:
-            _log(f"note: the workers do not declare the resource {mem.RESOURCE}=1 (start them with "
-                 f"--resources {mem.RESOURCE}=1, docs/sweeps.md); each runs one member at a time by a lock, "
-                 f"but Dask may queue several on one worker", opts)
+            _log(
+                f"note: the workers do not declare the resource {mem.RESOURCE}=1 (start them with "
+                f"--resources {mem.RESOURCE}=1, docs/sweeps.md); each runs one member at a time by a lock, "
+                f"but Dask may queue several on one worker",
+                opts,
+            )
         info["scheduler"]["worker_threads"] = sorted({int(w.get("nthreads", 0)) for w in workers.values()})
         dash = _dashboard(client)
         info["dashboard"] = dash
         t0 = time.perf_counter()
-        code = _submit_and_wait(client, sweep, out_abs, todo, by_name, recs, opts, exclusive, save, dash, sweep_id,
-                                len(workers))
+        code = _submit_and_wait(
+            client, sweep, out_abs, todo, by_name, recs, opts, exclusive, save, dash, sweep_id, len(workers)
+        )
         timings["members"] = time.perf_counter() - t0
         t0 = time.perf_counter()
     finally:
@@ -337,18 +400,33 @@ def run_sweep(sweep_file: str | Path, opts: SweepOptions) -> tuple[int, list[dic
     return code, recs
 
 
-def _submit_and_wait(client, sweep, out_abs, todo, by_name, recs, opts, exclusive, save, dash, sweep_id,
-                     n_workers) -> int:
+def _submit_and_wait(
+    client, sweep, out_abs, todo, by_name, recs, opts, exclusive, save, dash, sweep_id, n_workers
+) -> int:
     from distributed import wait
+
     member_of = {m.name: m for m in sweep.members}
     futures = {}
     for name in todo:
         m = member_of[name]
-        job = {"name": name, "folder": str(out_abs / name), "scene": str(sweep.scene), "set_args": m.set_args(),
-               "render": opts.render, "max_particles": opts.max_particles, "exclusive": exclusive,
-               "sweep_id": sweep_id}
-        f = client.submit(mem.run_member, job, key=f"ipsph-member-{name}-{sweep_id}", pure=False,
-                          resources=None if exclusive else {mem.RESOURCE: 1}, retries=0)
+        job = {
+            "name": name,
+            "folder": str(out_abs / name),
+            "scene": str(sweep.scene),
+            "set_args": m.set_args(),
+            "render": opts.render,
+            "max_particles": opts.max_particles,
+            "exclusive": exclusive,
+            "sweep_id": sweep_id,
+        }
+        f = client.submit(
+            mem.run_member,
+            job,
+            key=f"ipsph-member-{name}-{sweep_id}",
+            pure=False,
+            resources=None if exclusive else {mem.RESOURCE: 1},
+            retries=0,
+        )
         futures[f] = name
     progress = Progress(opts, len(recs), n_workers, dash)
     progress.show(recs)
@@ -367,8 +445,11 @@ def _submit_and_wait(client, sweep, out_abs, todo, by_name, recs, opts, exclusiv
             progress.show(recs)
     except KeyboardInterrupt:
         interrupted = True
-        _log("interrupted: asking the running members to write a checkpoint and stop "
-             "(Ctrl-C again to leave them to stop on their own)", opts)
+        _log(
+            "interrupted: asking the running members to write a checkpoint and stop "
+            "(Ctrl-C again to leave them to stop on their own)",
+            opts,
+        )
         try:
             client.run(mem.stop_members, sweep_id, on_error="ignore")
             done, pending = wait(list(pending), timeout=300)
@@ -391,10 +472,13 @@ def _submit_and_wait(client, sweep, out_abs, todo, by_name, recs, opts, exclusiv
     for r in failed:
         _log(f"member {r['name']} failed (exit {r['exit_code']}): {r['reason']}", opts)
     if interrupted:
-        _log(f"stopped; finished members are intact; continue with the same command and --resume", opts)
+        _log("stopped; finished members are intact; continue with the same command and --resume", opts)
         return EXIT_INTERRUPTED
-    _log(f"{sum(r['status'] == 'completed' for r in recs)}/{len(recs)} members completed in {out_abs}; "
-         f"{records.SWEEP_JSON}, {records.SUMMARY_CSV}; `ipsph plot {out_abs}` overlays them", opts)
+    _log(
+        f"{sum(r['status'] == 'completed' for r in recs)}/{len(recs)} members completed in {out_abs}; "
+        f"{records.SWEEP_JSON}, {records.SUMMARY_CSV}; `ipsph plot {out_abs}` overlays them",
+        opts,
+    )
     return EXIT_MEMBERS_FAILED if failed else 0
 
 
@@ -441,6 +525,7 @@ def _poll_running(out_abs: Path, pending, futures, by_name, progress) -> bool:
 def _wait_child_gone(folder: Path, timeout: float = 120.0) -> None:
     """Block while a child still holds the member folder's lock (a member stopping after its worker died)."""
     import fcntl
+
     lock_path = folder / mem.LOCK_FILE
     if not lock_path.exists():
         return

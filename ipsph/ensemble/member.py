@@ -17,6 +17,7 @@ child to finish writing its checkpoint before it resumes.
 Attempt bookkeeping lives in the folder too (sweep-member.log: one header per attempt, then the
 child's stderr), so it survives the worker.
 """
+
 from __future__ import annotations
 
 import fcntl
@@ -36,8 +37,8 @@ PID_FILE = ".sweep-member.pid"
 RESOURCE = "ipsph_member"  # Dask worker resource: one member at a time per worker
 
 _RUNNING: dict[int, subprocess.Popen] = {}  # this worker process's running children, by pid
-_ONE_AT_A_TIME = threading.Lock()           # for workers started without the resource
-_STOPPED: set[str] = set()                  # sweeps stopped by Ctrl-C: their queued members do not start
+_ONE_AT_A_TIME = threading.Lock()  # for workers started without the resource
+_STOPPED: set[str] = set()  # sweeps stopped by Ctrl-C: their queued members do not start
 
 
 def stop_members(sweep_id: str) -> int:
@@ -71,6 +72,7 @@ def probe_folder(probe: str, token: str) -> bool | str:
 def worker_threads() -> int:
     try:
         from distributed import get_worker
+
         return int(get_worker().state.nthreads)
     except (ImportError, ValueError, AttributeError):
         return 1
@@ -97,7 +99,7 @@ def _error_line(log_tail: str) -> str | None:
     lines = [ln.strip() for ln in log_tail.splitlines() if ln.strip()]
     errs = [ln for ln in lines if ln.startswith("ipsph: error:")]
     if errs:
-        return errs[-1][len("ipsph: error:"):].strip()
+        return errs[-1][len("ipsph: error:") :].strip()
     tb = [ln for ln in lines if not ln.startswith(("ipsph: note", "ipsph: warning", "=="))]
     return tb[-1] if tb else None
 
@@ -142,8 +144,9 @@ def _run_member(job: dict) -> dict:
         state = folder_state(folder)
         if state == "completed":  # an earlier attempt finished just before its worker died
             info = _read_json(folder / "run.json") or {}
-            return _record(job, "completed", 0, None, info, threads, host, _attempts(folder / LOG_FILE), 0.0,
-                           waited, resumed=False)
+            return _record(
+                job, "completed", 0, None, info, threads, host, _attempts(folder / LOG_FILE), 0.0, waited, resumed=False
+            )
         attempt = _attempts(folder / LOG_FILE) + 1
         mode = {"checkpoint": "--resume", "started": "--overwrite"}.get(state)
         code, wall, tail = _child(job, folder, lock, threads, mode, attempt, host)
@@ -155,21 +158,39 @@ def _run_member(job: dict) -> dict:
         if code == 0:
             status, reason = "completed", None
         elif code == 130:
-            status, reason = "interrupted", "stopped by a signal after a final frame and a checkpoint; --resume continues it"
+            status, reason = (
+                "interrupted",
+                "stopped by a signal after a final frame and a checkpoint; --resume continues it",
+            )
         else:
             status = "failed"
-            reason = info.get("error") or _error_line(tail) or (
-                f"killed by signal {signal.Signals(-code).name}" if code < 0 else f"exit code {code}")
-        return _record(job, status, code, reason, info, threads, host, attempt, wall, waited,
-                       resumed=mode == "--resume")
+            reason = (
+                info.get("error")
+                or _error_line(tail)
+                or (f"killed by signal {signal.Signals(-code).name}" if code < 0 else f"exit code {code}")
+            )
+        return _record(
+            job, status, code, reason, info, threads, host, attempt, wall, waited, resumed=mode == "--resume"
+        )
     finally:
         lock.close()
 
 
-def _child(job: dict, folder: Path, lock, threads: int, mode: str | None, attempt: int, host: str,
-           note: str = "") -> tuple[int, float, str]:
-    cmd = [sys.executable, "-m", "ipsph.ensemble._child", "run", str(job["scene"]), "-o", str(folder),
-           "--quiet", "--threads", str(threads)]
+def _child(
+    job: dict, folder: Path, lock, threads: int, mode: str | None, attempt: int, host: str, note: str = ""
+) -> tuple[int, float, str]:
+    cmd = [
+        sys.executable,
+        "-m",
+        "ipsph.ensemble._child",
+        "run",
+        str(job["scene"]),
+        "-o",
+        str(folder),
+        "--quiet",
+        "--threads",
+        str(threads),
+    ]
     for s in job["set_args"]:
         cmd += ["--set", s]
     if not job.get("render", True):
@@ -182,14 +203,23 @@ def _child(job: dict, folder: Path, lock, threads: int, mode: str | None, attemp
     env.pop("OMP_NUM_THREADS", None)  # Dask sets it to 1 in workers; `ipsph run` leaves it to Numba
     log_path = folder / LOG_FILE
     with open(log_path, "a") as log:
-        log.write(f"== attempt {attempt}{' ' + note if note else ''} on {host} pid {os.getpid()}, "
-                  f"{threads} threads, {time.strftime('%Y-%m-%dT%H:%M:%S%z')}: {' '.join(cmd[3:])}\n")
+        log.write(
+            f"== attempt {attempt}{' ' + note if note else ''} on {host} pid {os.getpid()}, "
+            f"{threads} threads, {time.strftime('%Y-%m-%dT%H:%M:%S%z')}: {' '.join(cmd[3:])}\n"
+        )
         log.flush()
         start = log.tell()
         t0 = time.perf_counter()
         # own session: a terminal's Ctrl-C reaches the sweep's client, which stops members with SIGTERM
-        proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT, env=env,
-                                pass_fds=(lock.fileno(),), start_new_session=True)
+        proc = subprocess.Popen(
+            cmd,
+            stdin=subprocess.DEVNULL,
+            stdout=log,
+            stderr=subprocess.STDOUT,
+            env=env,
+            pass_fds=(lock.fileno(),),
+            start_new_session=True,
+        )
         _RUNNING[proc.pid] = proc
         if job.get("sweep_id") in _STOPPED:  # Ctrl-C came while it started
             proc.send_signal(signal.SIGTERM)
@@ -209,8 +239,18 @@ def _child(job: dict, folder: Path, lock, threads: int, mode: str | None, attemp
 
 
 def _record(job, status, code, reason, info, threads, host, attempt, wall, waited, resumed) -> dict:
-    return {"name": job["name"], "status": status, "exit_code": code, "reason": reason,
-            "wall_seconds": info.get("wall_seconds") if status == "completed" and not wall else wall,
-            "run_wall_seconds": info.get("wall_seconds"), "threads": threads, "host": host, "worker_pid": os.getpid(),
-            "attempts": attempt, "resumed": resumed, "lock_wait_seconds": waited,
-            "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
+    return {
+        "name": job["name"],
+        "status": status,
+        "exit_code": code,
+        "reason": reason,
+        "wall_seconds": info.get("wall_seconds") if status == "completed" and not wall else wall,
+        "run_wall_seconds": info.get("wall_seconds"),
+        "threads": threads,
+        "host": host,
+        "worker_pid": os.getpid(),
+        "attempts": attempt,
+        "resumed": resumed,
+        "lock_wait_seconds": waited,
+        "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+    }

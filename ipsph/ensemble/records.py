@@ -1,12 +1,13 @@
 """OUT/sweep.json and OUT/summary.csv: what the sweep is and how far it got, rewritten atomically.
 
-    OUT/sweep.json     the resolved sweep (sweep file, base scene, [set], [grid], [zip]) and per
-                       member: name, folder, parameters, status (pending | running | completed |
-                       failed | interrupted), exit code, reason, wall time, threads, host, attempts
-    OUT/summary.csv    one row per member, columns SUMMARY_COLUMNS then one per varied key,
-                       from the member's run.json and stats.csv
-    OUT/<member>/      everything `ipsph run` writes, plus sweep-member.log (its stderr, per attempt)
+OUT/sweep.json     the resolved sweep (sweep file, base scene, [set], [grid], [zip]) and per
+                   member: name, folder, parameters, status (pending | running | completed |
+                   failed | interrupted), exit code, reason, wall time, threads, host, attempts
+OUT/summary.csv    one row per member, columns SUMMARY_COLUMNS then one per varied key,
+                   from the member's run.json and stats.csv
+OUT/<member>/      everything `ipsph run` writes, plus sweep-member.log (its stderr, per attempt)
 """
+
 from __future__ import annotations
 
 import csv
@@ -49,8 +50,14 @@ SUMMARY_COLUMNS = (
 
 
 def write_sweep_json(out: Path, sweep_info: dict, records: list[dict]) -> None:
-    data = {"format": FORMAT, **sweep_info, "updated": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
-            "counts": counts(records), "members": records, "versions": versions()}
+    data = {
+        "format": FORMAT,
+        **sweep_info,
+        "updated": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        "counts": counts(records),
+        "members": records,
+        "versions": versions(),
+    }
     text = json.dumps(to_jsonable(data), indent=2, allow_nan=False) + "\n"
     with atomic_path(out / SWEEP_JSON, "sweep record") as tmp:
         tmp.write_text(text)
@@ -78,16 +85,28 @@ def _mean(a) -> float:
 def member_row(out: Path, rec: dict) -> dict:
     """The summary row of one member, from its record and its folder."""
     from ..io.stats import read_stats
+
     folder = out / rec["name"]
-    row = {"member": rec["name"], "status": rec["status"], "exit_code": rec.get("exit_code"),
-           "threads": rec.get("threads"), "attempts": rec.get("attempts")}
+    row = {
+        "member": rec["name"],
+        "status": rec["status"],
+        "exit_code": rec.get("exit_code"),
+        "threads": rec.get("threads"),
+        "attempts": rec.get("attempts"),
+    }
     try:
         info = json.loads((folder / "run.json").read_text())
     except (OSError, ValueError):
         info = {}
-    row.update(method=info.get("method"), particle_radius=info.get("particle_radius"),
-               fluid_particles=info.get("fluid_particles"), boundary_particles=info.get("boundary_particles"),
-               steps=info.get("steps"), sim_time=info.get("sim_time"), wall_seconds=info.get("wall_seconds"))
+    row.update(
+        method=info.get("method"),
+        particle_radius=info.get("particle_radius"),
+        fluid_particles=info.get("fluid_particles"),
+        boundary_particles=info.get("boundary_particles"),
+        steps=info.get("steps"),
+        sim_time=info.get("sim_time"),
+        wall_seconds=info.get("wall_seconds"),
+    )
     if row["wall_seconds"] and row["sim_time"]:
         row["wall_per_sim_second"] = row["wall_seconds"] / row["sim_time"]
     try:
@@ -111,8 +130,13 @@ def write_summary_csv(out: Path, records: list[dict], varied_keys: list[str], pa
     w.writeheader()
     for rec in records:
         row = member_row(out, rec)
-        row.update({k: json.dumps(v) if isinstance(v, (list, tuple)) else v
-                    for k, v in params.get(rec["name"], {}).items() if k in varied_keys})
+        row.update(
+            {
+                k: json.dumps(v) if isinstance(v, (list, tuple)) else v
+                for k, v in params.get(rec["name"], {}).items()
+                if k in varied_keys
+            }
+        )
         w.writerow({k: _cell(row.get(k)) for k in cols})
     with atomic_path(out / SUMMARY_CSV, "sweep summary") as tmp:
         tmp.write_text(buf.getvalue())
@@ -130,6 +154,7 @@ def plot_folders(dirs: list[Path], output: Path | None) -> tuple[list[Path], Pat
     """`ipsph plot` arguments with each sweep folder replaced by its members that have stats.csv
     (in sweep order); the plots of a lone sweep folder go to OUT/plots."""
     from ..errors import OutputError
+
     expanded, target = [], output
     for d in map(Path, dirs):
         info = read_sweep_json(d) if (d / SWEEP_JSON).is_file() else None

@@ -21,6 +21,7 @@ grid key varies fastest). A member's folder name is built from its varied values
 `ipsph run` would do before allocating anything) and raises a one-line `ConfigError` naming the
 member and the key, so a bad sweep exits 2 before any cluster starts.
 """
+
 from __future__ import annotations
 
 import itertools
@@ -41,10 +42,11 @@ SECTIONS = ("set", "grid", "zip")
 @dataclass(frozen=True)
 class Member:
     """One scene of the sweep: its folder name and the overrides that make it (applied in order)."""
+
     index: int
     name: str
-    overrides: tuple[tuple[str, Any], ...]   # [set] first, then the varied keys
-    varied: tuple[tuple[str, Any], ...]      # the grid and zip values only (the name's source)
+    overrides: tuple[tuple[str, Any], ...]  # [set] first, then the varied keys
+    varied: tuple[tuple[str, Any], ...]  # the grid and zip values only (the name's source)
 
     def set_args(self) -> list[str]:
         """The overrides as `ipsph run --set KEY=VALUE` strings."""
@@ -56,18 +58,23 @@ class Member:
 
 @dataclass(frozen=True)
 class Sweep:
-    path: Path                 # the sweep file (absolute)
+    path: Path  # the sweep file (absolute)
     name: str
-    scene: Path                # the base scene (absolute)
+    scene: Path  # the base scene (absolute)
     fixed: tuple[tuple[str, Any], ...]
     grid: tuple[tuple[str, tuple], ...]
     zipped: tuple[tuple[str, tuple], ...]
     members: tuple[Member, ...] = field(default=())
 
     def as_dict(self) -> dict:
-        return {"sweep_file": str(self.path), "name": self.name, "scene": str(self.scene),
-                "set": dict(self.fixed), "grid": {k: list(v) for k, v in self.grid},
-                "zip": {k: list(v) for k, v in self.zipped}}
+        return {
+            "sweep_file": str(self.path),
+            "name": self.name,
+            "scene": str(self.scene),
+            "set": dict(self.fixed),
+            "grid": {k: list(v) for k, v in self.grid},
+            "zip": {k: list(v) for k, v in self.zipped},
+        }
 
 
 def toml_value(v: Any) -> str:
@@ -142,11 +149,13 @@ def load_sweep(path: str | Path, extra: list[str] = ()) -> Sweep:
         raise ConfigError(f"{where}: not valid TOML: {' '.join(str(exc).split())}") from exc
     for k in data:
         if k not in TOP_KEYS:
-            raise ConfigError(f"{where}: unknown key {k!r}; a sweep file has {', '.join(TOP_KEYS)} "
-                              f"(scene keys go under [set], [grid] or [zip])")
+            raise ConfigError(
+                f"{where}: unknown key {k!r}; a sweep file has {', '.join(TOP_KEYS)} "
+                f"(scene keys go under [set], [grid] or [zip])"
+            )
     scene = data.get("scene")
     if not isinstance(scene, str) or not scene:
-        raise ConfigError(f"{where}: scene = \"...\" (the base scene file, relative to the sweep file) is missing")
+        raise ConfigError(f'{where}: scene = "..." (the base scene file, relative to the sweep file) is missing')
     scene_path = (resolved.parent / scene).resolve()
     if scene_path.suffix.lower() not in (".toml", ".json"):
         raise ConfigError(f"{where}: scene = {scene!r}: expected a .toml scene or a SPlisHSPlasH .json scene")
@@ -159,7 +168,7 @@ def load_sweep(path: str | Path, extra: list[str] = ()) -> Sweep:
     for s in SECTIONS:
         table = data.get(s, {})
         if not isinstance(table, dict):
-            raise ConfigError(f"{where}: [{s}] must be a table of \"key.path\" = value")
+            raise ConfigError(f'{where}: [{s}] must be a table of "key.path" = value')
         sections[s] = _flatten(table)
     for item in extra:
         k, sep, raw = str(item).partition("=")
@@ -184,8 +193,10 @@ def load_sweep(path: str | Path, extra: list[str] = ()) -> Sweep:
     if zipped:
         lengths = {k: len(v) for k, v in zipped}
         if len(set(lengths.values())) > 1:
-            raise ConfigError(f"{where}: the [zip] lists must have equal lengths, got "
-                              + ", ".join(f"{k}: {n}" for k, n in lengths.items()))
+            raise ConfigError(
+                f"{where}: the [zip] lists must have equal lengths, got "
+                + ", ".join(f"{k}: {n}" for k, n in lengths.items())
+            )
     grid = sections["grid"]
     varied_keys = [k for k, _ in grid] + [k for k, _ in zipped]
     rows = []
@@ -195,16 +206,25 @@ def load_sweep(path: str | Path, extra: list[str] = ()) -> Sweep:
             rows.append(list(combo) + list(z))
     names = member_names(varied_keys, rows)
     fixed = tuple(sections["set"])
-    members = tuple(Member(i, n, fixed + tuple(zip(varied_keys, row)), tuple(zip(varied_keys, row)))
-                    for i, (n, row) in enumerate(zip(names, rows)))
+    members = tuple(
+        Member(i, n, fixed + tuple(zip(varied_keys, row)), tuple(zip(varied_keys, row)))
+        for i, (n, row) in enumerate(zip(names, rows))
+    )
     for m in members:  # every value must be writable as a --set value
         for k, v in m.overrides:
             try:
                 toml_value(v)
             except ConfigError as exc:
                 raise ConfigError(f"{where}: member {m.name}: {k}: {exc}") from None
-    return Sweep(resolved, name, scene_path, fixed, tuple((k, tuple(v)) for k, v in grid),
-                 tuple((k, tuple(v)) for k, v in zipped), members)
+    return Sweep(
+        resolved,
+        name,
+        scene_path,
+        fixed,
+        tuple((k, tuple(v)) for k, v in grid),
+        tuple((k, tuple(v)) for k, v in zipped),
+        members,
+    )
 
 
 def validate(sweep: Sweep, max_particles: int | None = None, concurrent: int = 1) -> list:
@@ -216,6 +236,7 @@ def validate(sweep: Sweep, max_particles: int | None = None, concurrent: int = 1
     from .. import preflight
     from ..errors import InputError
     from ..scene import load_scene
+
     limit = max_particles or max(1, preflight.default_max_particles() // max(1, concurrent))
     scenes = []
     for m in sweep.members:

@@ -19,6 +19,7 @@ Every file that a reader may open while the run goes on is replaced atomically
 (temporary name in the same folder, fsync, os.replace), so a crash or a full disk
 leaves the previous version intact and never a partial file under the final name.
 """
+
 from __future__ import annotations
 
 import os
@@ -29,9 +30,26 @@ from pathlib import Path
 from ..errors import WriteError
 
 __all__ = [
-    "FRAMES_DIR", "RUN_PVD", "BOUNDARY_VTU", "BOUNDARY_SURFACE", "STATS_CSV", "RUN_JSON",
-    "RENDERS_DIR", "PLOTS_DIR", "SURFACES_DIR", "PARAVIEW_SCRIPT", "Part", "PARTS", "part", "frame_file",
-    "surface_file", "atomic_path", "check_writable", "BODIES_DIR", "BODIES_CSV", "bodies_file",
+    "FRAMES_DIR",
+    "RUN_PVD",
+    "BOUNDARY_VTU",
+    "BOUNDARY_SURFACE",
+    "STATS_CSV",
+    "RUN_JSON",
+    "RENDERS_DIR",
+    "PLOTS_DIR",
+    "SURFACES_DIR",
+    "PARAVIEW_SCRIPT",
+    "Part",
+    "PARTS",
+    "part",
+    "frame_file",
+    "surface_file",
+    "atomic_path",
+    "check_writable",
+    "BODIES_DIR",
+    "BODIES_CSV",
+    "bodies_file",
 ]
 
 RUN_PVD = "run.pvd"
@@ -51,6 +69,7 @@ BODIES_CSV = "bodies.csv"
 @dataclass(frozen=True)
 class Part:
     """One part of run.pvd: a named block of every timestep."""
+
     name: str
     file: str | None = None  # the one file of a part written once; None: a file per frame
 
@@ -68,7 +87,7 @@ PARTS = (
     Part("surface"),
     Part("boundary", BOUNDARY_VTU),
     Part("boundary_surface", BOUNDARY_SURFACE),
-    Part("bodies"),            # moving walls and rigid bodies: their surfaces, a file per frame
+    Part("bodies"),  # moving walls and rigid bodies: their surfaces, a file per frame
 )
 
 
@@ -83,14 +102,16 @@ def part(name: str) -> Part:
 def check_writable(out: Path) -> None:
     """Create the folder `out` and prove it writable (a probe file), else a one-line OutputError."""
     from ..errors import OutputError
+
     try:
         out.mkdir(parents=True, exist_ok=True)
         probe = out / f".ipsph-write-test-{os.getpid()}"
         probe.write_bytes(b"ok")
         probe.unlink()
     except OSError as exc:
-        raise OutputError(f"output folder {out} (resolved {out.resolve()}) is not writable: "
-                          f"{exc.strerror or exc}") from exc
+        raise OutputError(
+            f"output folder {out} (resolved {out.resolve()}) is not writable: {exc.strerror or exc}"
+        ) from exc
 
 
 def frame_file(index: int) -> str:

@@ -6,31 +6,49 @@ mass). Its row: the centre (a body's centre of mass; a kinematic wall's pivot), 
 quaternion, the centre's velocity and the fluid's force and torque on it (about that centre) in
 the step just finished (ipsph.rigid).
 """
+
 from __future__ import annotations
 
 import csv
 import os
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from . import BODIES_CSV, bodies_file
 
+if TYPE_CHECKING:
+    import pyvista as pv
+
 # bodies.csv's columns, in order, with their units (declared once: the writer, the reader, the docs)
 BODIES_COLUMNS = (
-    ("time", "s"), ("body", ""),
-    ("x", "m"), ("y", "m"), ("z", "m"),
-    ("qw", ""), ("qx", ""), ("qy", ""), ("qz", ""),
-    ("vx", "m/s"), ("vy", "m/s"), ("vz", "m/s"),
-    ("fx", "N"), ("fy", "N"), ("fz", "N"),
-    ("tx", "N m"), ("ty", "N m"), ("tz", "N m"),
+    ("time", "s"),
+    ("body", ""),
+    ("x", "m"),
+    ("y", "m"),
+    ("z", "m"),
+    ("qw", ""),
+    ("qx", ""),
+    ("qy", ""),
+    ("qz", ""),
+    ("vx", "m/s"),
+    ("vy", "m/s"),
+    ("vz", "m/s"),
+    ("fx", "N"),
+    ("fy", "N"),
+    ("fz", "N"),
+    ("tx", "N m"),
+    ("ty", "N m"),
+    ("tz", "N m"),
 )
 
 
-def moving_surfaces(scene, walls) -> "pyvista.PolyData":
+def moving_surfaces(scene, walls) -> "pv.PolyData":
     """The moving walls' surfaces where they are now, merged (one mesh; `body` cell data = its index)."""
     import pyvista as pv
     from ..sampling import boundary_surface
+
     parts = []
     movers = {name: ("body", b) for name, b in ((b.name, b) for b in walls.bodies)}
     movers.update({name: ("kinematic", m) for _, name, m in walls.kinematic})
@@ -59,7 +77,7 @@ class BodiesLog:
     def __init__(self, out: Path, truncate_after_time: float | None = None):
         self.out = Path(out)
         path = self.out / BODIES_CSV
-        if truncate_after_time is not None and path.is_file():   # a resumed run: drop rows after the checkpoint
+        if truncate_after_time is not None and path.is_file():  # a resumed run: drop rows after the checkpoint
             with open(path, newline="") as f:
                 rows = list(csv.reader(f))
             keep = [rows[0]] + [r for r in rows[1:] if float(r[0]) <= truncate_after_time + 1e-12]
@@ -79,6 +97,7 @@ class BodiesLog:
     def frame(self, sim, index: int) -> str:
         """Write the moving walls' surfaces of this frame; returns the file name relative to OUT."""
         from . import vtu
+
         name = bodies_file(index)
         (self.out / name).parent.mkdir(parents=True, exist_ok=True)
         vtu.write_surface(self.out / name, moving_surfaces(sim.scene, sim.walls))

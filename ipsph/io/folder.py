@@ -2,6 +2,7 @@
 checkpoints, run.json, the progress line. No signal handling and no solver: the runner drives it
 from the time loop's callbacks.
 """
+
 from __future__ import annotations
 
 import os
@@ -17,7 +18,7 @@ from .. import io, paraview
 from ..errors import OutputError
 from . import provenance, pvd, stats, vtu
 
-PROGRESS_EVERY_S = 10.0    # progress lines when stderr is not a terminal (a log file, a batch job)
+PROGRESS_EVERY_S = 10.0  # progress lines when stderr is not a terminal (a log file, a batch job)
 INTERRUPT_RENDER_WAIT_S = 10.0  # after Ctrl-C the frames in flight get this long to render; --resume does the rest
 
 
@@ -29,24 +30,38 @@ def check_output_folder(out: Path, overwrite: bool, resume: bool) -> None:
     if out.exists() and not out.is_dir():
         raise OutputError(f"output folder {out} (resolved {out.resolve()}) is a file; choose another -o")
     if (out / io.RUN_JSON).exists() and not (overwrite or resume):
-        raise OutputError(f"output folder {out} holds an earlier run; pass --overwrite to replace it "
-                          f"or --resume to continue it")
+        raise OutputError(
+            f"output folder {out} holds an earlier run; pass --overwrite to replace it or --resume to continue it"
+        )
     if resume and not (out / io.RUN_JSON).exists():
-        raise OutputError(f"--resume: output folder {out} (resolved {out.resolve()}) holds no earlier run "
-                          f"to continue; run without --resume")
+        raise OutputError(
+            f"--resume: output folder {out} (resolved {out.resolve()}) holds no earlier run "
+            f"to continue; run without --resume"
+        )
     existing = out.resolve()
     while not existing.exists():  # the deepest folder that exists must let us create the rest
         existing = existing.parent
     if not existing.is_dir() or not os.access(existing, os.W_OK | os.X_OK):
-        raise OutputError(f"output folder {out} (resolved {out.resolve()}) is not writable: "
-                          f"{existing} is {'not a folder' if not existing.is_dir() else 'read-only'}")
+        raise OutputError(
+            f"output folder {out} (resolved {out.resolve()}) is not writable: "
+            f"{existing} is {'not a folder' if not existing.is_dir() else 'read-only'}"
+        )
 
 
 # Everything a run (and `ipsph render` / `ipsph plot` into it) writes: --overwrite removes all of it.
 WRITTEN_DIRS = (io.FRAMES_DIR, io.RENDERS_DIR, io.PLOTS_DIR, io.SURFACES_DIR)
-WRITTEN_FILES = (io.RUN_PVD, io.BOUNDARY_VTU, io.BOUNDARY_SURFACE, io.STATS_CSV,
-                 io.RUN_JSON, ckpt.CHECKPOINT_FILE, "video.mp4", "video.gif", io.PARAVIEW_SCRIPT,
-                 *(p.series for p in io.PARTS if p.series))
+WRITTEN_FILES = (
+    io.RUN_PVD,
+    io.BOUNDARY_VTU,
+    io.BOUNDARY_SURFACE,
+    io.STATS_CSV,
+    io.RUN_JSON,
+    ckpt.CHECKPOINT_FILE,
+    "video.mp4",
+    "video.gif",
+    io.PARAVIEW_SCRIPT,
+    *(p.series for p in io.PARTS if p.series),
+)
 
 
 def prepare_output_folder(out: Path, overwrite: bool, resume: bool) -> None:
@@ -67,8 +82,17 @@ class RunFolder:
     checkpoint are deleted and dropped from the PVD, stats rows after its step are cut.
     """
 
-    def __init__(self, out: Path, sim, scene, info: dict, renderer, progress: bool,
-                 resume: ckpt.Checkpoint | None = None, surfacer=None):
+    def __init__(
+        self,
+        out: Path,
+        sim,
+        scene,
+        info: dict,
+        renderer,
+        progress: bool,
+        resume: ckpt.Checkpoint | None = None,
+        surfacer=None,
+    ):
         self.out, self.sim, self.scene, self.info = out, sim, scene, info
         self.stopping = lambda: False  # the runner's: has a stop been requested (a signal)?
         self.fields = scene.output.fields
@@ -79,9 +103,13 @@ class RunFolder:
             b = sim.boundary
             boundary_file = None
             if b.n:
-                vtu.write_particles(out / io.BOUNDARY_VTU, b.x,
-                                           {"volume": b.psi, "id": np.arange(b.n, dtype=np.int64)}, 0.0,
-                                           field_data=self.field_data)
+                vtu.write_particles(
+                    out / io.BOUNDARY_VTU,
+                    b.x,
+                    {"volume": b.psi, "id": np.arange(b.n, dtype=np.int64)},
+                    0.0,
+                    field_data=self.field_data,
+                )
                 boundary_file = io.BOUNDARY_VTU
             surface = io.BOUNDARY_SURFACE if scene.boundaries else None  # written below
             self.pvd = pvd.PvdSeries(out / io.RUN_PVD, boundary_file, static={"boundary_surface": surface})
@@ -96,17 +124,18 @@ class RunFolder:
             self.solver_maxed = int(resume.scalars["solver_maxed"])
             self.last_checkpoint_time = resume.time
             self._delete_frames_from(self.frames)
-            self.stats = stats.StatsWriter(out / io.STATS_CSV, stats.STATS_COLUMNS,
-                                                  truncate_after_step=resume.steps)
+            self.stats = stats.StatsWriter(out / io.STATS_CSV, stats.STATS_COLUMNS, truncate_after_step=resume.steps)
         self.surface = self._write_surface()
-        self.bodies = None   # moving walls and rigid bodies: bodies.csv, bodies/*.vtp (io.bodies)
+        self.bodies = None  # moving walls and rigid bodies: bodies.csv, bodies/*.vtp (io.bodies)
         if sim.walls is not None:
             from .bodies import BodiesLog
+
             self.bodies = BodiesLog(out, None if resume is None else resume.time)
         self.renderer = self._configure_renderer(renderer) if renderer is not None else None
         self.surfacer = surfacer  # surfaces/*.vtp beside the solver (ipsph.surface_worker)
         if surfacer is not None:
             from ..surface import container_bounds
+
             clip = container_bounds(scene.boundaries)
             surfacer.configure(out, scene.particle_radius, scene.density0, scene.surface, clip)
             self.info["surface"] = {"enabled": True, **_asdict(scene.surface), "clip_bounds": clip}
@@ -124,14 +153,17 @@ class RunFolder:
     def _delete_frames_from(self, first: int) -> None:
         """Remove frame files (and their renders) numbered `first` and later: a resumed run rewrites them.
         Temporary files a killed run left behind go too (nothing references them)."""
-        for folder, pattern in ((io.FRAMES_DIR, "fluid_*.vtu"), (io.RENDERS_DIR, "frame_*.png"),
-                                (io.SURFACES_DIR, "surface_*.*"), (io.BODIES_DIR, "bodies_*.vtp")):
+        for folder, pattern in (
+            (io.FRAMES_DIR, "fluid_*.vtu"),
+            (io.RENDERS_DIR, "frame_*.png"),
+            (io.SURFACES_DIR, "surface_*.*"),
+            (io.BODIES_DIR, "bodies_*.vtp"),
+        ):
             for f in (self.out / folder).glob(pattern):
                 index = f.stem.rsplit("_", 1)[-1]
                 if index.isdigit() and int(index) >= first:
                     f.unlink(missing_ok=True)
-        for folder in (self.out, self.out / io.FRAMES_DIR, self.out / io.RENDERS_DIR,
-                       self.out / io.SURFACES_DIR):
+        for folder in (self.out, self.out / io.FRAMES_DIR, self.out / io.RENDERS_DIR, self.out / io.SURFACES_DIR):
             for f in folder.glob(".*.tmp"):
                 f.unlink(missing_ok=True)
 
@@ -139,8 +171,7 @@ class RunFolder:
         """On --resume with renders: the earlier frames without a render (an interrupt, --no-render or a
         missing GL stack cut them short) are queued first, from their VTU files; when the frames hold
         no velocity field (or the renderer fails), one line says how to make them."""
-        missing = [k for k in range(self.frames)
-                   if not (self.out / io.RENDERS_DIR / f"frame_{k:06d}.png").is_file()]
+        missing = [k for k in range(self.frames) if not (self.out / io.RENDERS_DIR / f"frame_{k:06d}.png").is_file()]
         if not missing or self.renderer is None:  # --no-render: no renders wanted now
             return
         if "velocity" in self.fields:
@@ -151,18 +182,30 @@ class RunFolder:
                     self._render_failed()
                     break
             else:
-                print(f"ipsph: note: rendering the {len(missing)} earlier frames that have no render "
-                      f"({io.RENDERS_DIR}/frame_{missing[0]:06d}.png ...)", file=sys.stderr)
+                print(
+                    f"ipsph: note: rendering the {len(missing)} earlier frames that have no render "
+                    f"({io.RENDERS_DIR}/frame_{missing[0]:06d}.png ...)",
+                    file=sys.stderr,
+                )
                 return
-        print(f"ipsph: note: {len(missing)} earlier frames have no render; `ipsph render {self.out}` "
-              f"makes them", file=sys.stderr)
+        print(
+            f"ipsph: note: {len(missing)} earlier frames have no render; `ipsph render {self.out}` makes them",
+            file=sys.stderr,
+        )
 
     def checkpoint(self, sim) -> None:
         """Write OUT/checkpoint.npz (atomically) with everything a bit-identical resume needs."""
         import numba
+
         t0 = time.perf_counter()
-        ckpt.save(self.out / ckpt.CHECKPOINT_FILE, sim, frames=self.frames, last_frame_time=self.last_frame_time,
-                  solver_maxed=self.solver_maxed, threads=numba.get_num_threads())
+        ckpt.save(
+            self.out / ckpt.CHECKPOINT_FILE,
+            sim,
+            frames=self.frames,
+            last_frame_time=self.last_frame_time,
+            solver_maxed=self.solver_maxed,
+            threads=numba.get_num_threads(),
+        )
         self.last_checkpoint_time = sim.time
         self.info["checkpoint"] = {"file": ckpt.CHECKPOINT_FILE, "time": sim.time, "step": sim.steps}
         self.write_seconds += time.perf_counter() - t0
@@ -172,7 +215,8 @@ class RunFolder:
             return None
         import pyvista as pv
         from ..sampling import boundary_surface
-        static = [spec for spec in self.scene.boundaries if not spec.moving]   # moving ones: bodies/
+
+        static = [spec for spec in self.scene.boundaries if not spec.moving]  # moving ones: bodies/
         if not static:
             return None
         surf = pv.merge([boundary_surface(spec) for spec in static])
@@ -183,20 +227,32 @@ class RunFolder:
         # No GL probe here: the render worker is itself a child process, so a missing GL stack
         # crashes it, not the run, and it starts while the solver sets up (a probe costs ~1 s).
         from .. import render
+
         sim, scene = self.sim, self.scene
-        speed = max([float(np.linalg.norm(f.velocity)) for f in scene.fluids] + [e.velocity for e in scene.emitters],
-                    default=0.0)
+        speed = max(
+            [float(np.linalg.norm(f.velocity)) for f in scene.fluids] + [e.velocity for e in scene.emitters],
+            default=0.0,
+        )
         bounds = self.info["domain_bounds"]
         tops = [float(sim.positions[:, 1].max())] if sim.n_fluid else []
         tops += [float(e.position[1]) for e in scene.emitters]
         top = max(tops) if tops else bounds[3]
-        rng = scene.render.speed_range or self.info.pop("render_speed_range", None) \
+        rng = (
+            scene.render.speed_range
+            or self.info.pop("render_speed_range", None)
             or render.default_speed_range(speed, scene.gravity, top, bounds[2])
+        )
         self.info["render"] = {**_asdict(scene.render), "enabled": True, "speed_range": list(rng)}
         surface = self.out / io.BOUNDARY_SURFACE if self.surface is not None else None
-        worker.configure(scene.render, bounds, scene.particle_radius, rng, surface,
-                         title=f"{scene.name} - {scene.method.value.upper()} - " + (
-                             f"{sim.n_fluid:,} particles" if sim.flow is None else "emitters and sinks"))
+        worker.configure(
+            scene.render,
+            bounds,
+            scene.particle_radius,
+            rng,
+            surface,
+            title=f"{scene.name} - {scene.method.value.upper()} - "
+            + (f"{sim.n_fluid:,} particles" if sim.flow is None else "emitters and sinks"),
+        )
         return worker
 
     def frame(self, sim, k: int) -> None:
@@ -206,13 +262,16 @@ class RunFolder:
         name = io.frame_file(self.frames)
         fields = {}
         for f in self.fields:
-            fields[f] = {"velocity": lambda: sim.velocities.astype(np.float32),
-                         "density": lambda: sim.densities.astype(np.float32),
-                         "pressure": lambda: sim.pressures.astype(np.float32),
-                         "mass": lambda: sim.masses.astype(np.float32),
-                         "id": lambda: sim.ids}[f]()
-        vtu.write_particles(self.out / name, sim.positions.astype(np.float32), fields, sim.time,
-                                   field_data=self.field_data)
+            fields[f] = {
+                "velocity": lambda: sim.velocities.astype(np.float32),
+                "density": lambda: sim.densities.astype(np.float32),
+                "pressure": lambda: sim.pressures.astype(np.float32),
+                "mass": lambda: sim.masses.astype(np.float32),
+                "id": lambda: sim.ids,
+            }[f]()
+        vtu.write_particles(
+            self.out / name, sim.positions.astype(np.float32), fields, sim.time, field_data=self.field_data
+        )
         self._surfaces_done()  # listed by the same .pvd rewrite as the frame
         moving = {} if self.bodies is None else {"bodies": self.bodies.frame(sim, self.frames)}
         self.pvd.add(sim.time, name, **moving)
@@ -222,8 +281,9 @@ class RunFolder:
             self.surfacer.submit(self.frames, sim.time, sim.positions, sim.velocities, _warn)
         if self.renderer is not None and self.scene.render.mode != "surface":
             png = self.out / io.RENDERS_DIR / f"frame_{self.frames:06d}.png"
-            if not self.renderer.submit(sim.positions, sim.velocities, png, sim.time,
-                                        *(self.out / m for m in moving.values())):
+            if not self.renderer.submit(
+                sim.positions, sim.velocities, png, sim.time, *(self.out / m for m in moving.values())
+            ):
                 self._render_failed()
             self.render_seconds += time.perf_counter() - t1  # time the solver waited for renders
         self.frames += 1
@@ -267,6 +327,7 @@ class RunFolder:
         """The live line on a terminal (every step); elsewhere one line every PROGRESS_EVERY_S.
         The ETA is the run's own rate since its first step (which holds the JIT compilation)."""
         from ..estimate import eta_seconds, fmt_duration
+
         now = time.perf_counter()
         if self._first_step is None:
             self._first_step = (now, s.time, s.step)
@@ -279,9 +340,11 @@ class RunFolder:
         w0, t0, k0 = self._first_step
         rate = (s.step - k0) / max(now - w0, 1e-9)
         eta = fmt_duration(eta_seconds(s.time, end, t0, now - w0)) if s.step > k0 else "?"
-        line = (f"t = {s.time:7.3f} / {end:.3f} s ({100 * s.time / end:3.0f} %)  ETA {eta:>6}  "
-                f"frame {self.frames:4d}  step {s.step:6d}  density error {100 * s.density_error_mean:.3f} %  "
-                f"{rate:6.1f} steps/s")
+        line = (
+            f"t = {s.time:7.3f} / {end:.3f} s ({100 * s.time / end:3.0f} %)  ETA {eta:>6}  "
+            f"frame {self.frames:4d}  step {s.step:6d}  density error {100 * s.density_error_mean:.3f} %  "
+            f"{rate:6.1f} steps/s"
+        )
         sys.stderr.write(f"\r  {line} " if tty else f"ipsph: {line}\n")
         sys.stderr.flush()
 
@@ -305,22 +368,33 @@ class RunFolder:
         if self.renderer is not None:
             t0 = time.perf_counter()
             try:
-                self.renderer.close(timeout=INTERRUPT_RENDER_WAIT_S if interrupted else None, notice=lambda n: print(
-                    f"ipsph: rendering the last {n} frames (Ctrl-C skips them; `ipsph render {self.out}` "
-                    f"makes them later)", file=sys.stderr))  # the frames still in flight
+                self.renderer.close(
+                    timeout=INTERRUPT_RENDER_WAIT_S if interrupted else None,
+                    notice=lambda n: print(
+                        f"ipsph: rendering the last {n} frames (Ctrl-C skips them; `ipsph render {self.out}` "
+                        f"makes them later)",
+                        file=sys.stderr,
+                    ),
+                )  # the frames still in flight
             except KeyboardInterrupt:
                 missing = self.renderer.backlog
                 self.renderer.terminate()
-                print(f"ipsph: warning: renders interrupted, {missing} frames not rendered; "
-                      f"`ipsph render {self.out}` makes them", file=sys.stderr)
+                print(
+                    f"ipsph: warning: renders interrupted, {missing} frames not rendered; "
+                    f"`ipsph render {self.out}` makes them",
+                    file=sys.stderr,
+                )
                 self.info["render"] = {**self.info.get("render", {}), "interrupted": True}
                 self.renderer = None
                 return
             self.render_seconds += time.perf_counter() - t0
             left = self.renderer.backlog
             if interrupted and left > 0:  # stopped after INTERRUPT_RENDER_WAIT_S: the user asked to stop
-                print(f"ipsph: note: {left} frames were not rendered before the interrupt; --resume renders "
-                      f"them first (or `ipsph render {self.out}`)", file=sys.stderr)
+                print(
+                    f"ipsph: note: {left} frames were not rendered before the interrupt; --resume renders "
+                    f"them first (or `ipsph render {self.out}`)",
+                    file=sys.stderr,
+                )
                 self.info["render"] = {**self.info.get("render", {}), "interrupted": True}
                 self.renderer = None
                 return

@@ -1,4 +1,5 @@
 """run.json: what ran, with which versions, whether it completed (PySPH `.info` style)."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -56,8 +57,9 @@ def read_run_json(path: str | os.PathLike) -> dict:
         with open(path) as f:
             return json.load(f)
     except (OSError, ValueError) as exc:
-        raise OutputError(f"cannot read provenance file {path} (resolved {path.resolve()}): "
-                          f"{' '.join(str(exc).split())}") from exc
+        raise OutputError(
+            f"cannot read provenance file {path} (resolved {path.resolve()}): {' '.join(str(exc).split())}"
+        ) from exc
 
 
 def versions() -> dict:
@@ -72,6 +74,7 @@ def versions() -> dict:
             out[name] = None
     if out["ipsph"] is None:
         from .. import __version__
+
         out["ipsph"] = __version__
     out["platform"] = platform.platform()
     out["cpu_count"] = os.cpu_count()

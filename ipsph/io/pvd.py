@@ -9,6 +9,7 @@ directly. File names inside are relative to the .pvd's folder. The files are rew
 atomically after every frame, so a reader (ParaView, `ipsph render`) always sees a complete,
 valid series.
 """
+
 from __future__ import annotations
 
 import os
@@ -31,8 +32,13 @@ class PvdSeries:
     shorthand for static={"boundary": boundary_file}. Parts left out (or None) are not listed.
     """
 
-    def __init__(self, path: str | os.PathLike, boundary_file: str | os.PathLike | None = None, *,
-                 static: dict[str, str | os.PathLike | None] | None = None):
+    def __init__(
+        self,
+        path: str | os.PathLike,
+        boundary_file: str | os.PathLike | None = None,
+        *,
+        static: dict[str, str | os.PathLike | None] | None = None,
+    ):
         self.path = Path(path)
         self.static: dict[str, str] = {}
         for name, file in {"boundary": boundary_file, **(static or {})}.items():
@@ -86,9 +92,9 @@ class PvdSeries:
         """Drop frames later than `time` (resume from a checkpoint), rewrite; return the dropped ones."""
         limit = float(time) + 1e-12 * max(1.0, abs(float(time)))  # frame times round-trip exactly via repr
         kept = [f for f in self.frames if f[0] <= limit]
-        dropped = self.frames[len(kept):]
+        dropped = self.frames[len(kept) :]
         self.frames = kept
-        self.frame_parts = self.frame_parts[:len(kept)]
+        self.frame_parts = self.frame_parts[: len(kept)]
         self.write()
         return dropped
 
@@ -99,14 +105,16 @@ class PvdSeries:
 
     def to_xml(self, only: str | None = None) -> str:
         """run.pvd's text; with `only`, the series of that one part."""
-        lines = ['<?xml version="1.0"?>',
-                 '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">',
-                 '  <Collection>']
+        lines = [
+            '<?xml version="1.0"?>',
+            '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">',
+            "  <Collection>",
+        ]
         for i, (t, _) in enumerate(self.frames):
             sets = [d for d in self._datasets(i) if only is None or d[0] == only]
             for k, (name, f) in enumerate(sets):
                 lines.append(f'    <DataSet timestep="{t!r}" group="" part="{k}" name="{name}" file="{_attr(f)}"/>')
-        lines += ['  </Collection>', '</VTKFile>', '']
+        lines += ["  </Collection>", "</VTKFile>", ""]
         return "\n".join(lines)
 
     def series_files(self) -> dict[str, Path]:
@@ -132,8 +140,9 @@ class PvdSeries:
         try:
             root = ET.parse(path).getroot()
         except (OSError, ET.ParseError) as exc:
-            raise OutputError(f"cannot read series file {path} (resolved {path.resolve()}): "
-                              f"{' '.join(str(exc).split())}") from exc
+            raise OutputError(
+                f"cannot read series file {path} (resolved {path.resolve()}): {' '.join(str(exc).split())}"
+            ) from exc
         coll = root.find("Collection")
         if root.tag != "VTKFile" or coll is None:
             raise OutputError(f"series file {path} (resolved {path.resolve()}) is not a VTK collection (.pvd)")

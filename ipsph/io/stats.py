@@ -4,6 +4,7 @@ The columns are declared once, in `STEP_COLUMNS` (each with how it is read from 
 `StepStats`) and `ipsph.params.PHASES` (the `ms_<phase>` timings); `STATS_COLUMNS` and
 `step_row` are generated from them, and the plots and docs/output-format.md read those names.
 """
+
 from __future__ import annotations
 
 import math
@@ -27,8 +28,10 @@ STEP_COLUMNS = {
     "particles": (lambda s, n: n, "fluid particles (after the step's emission and removal)"),
     "emitted": (lambda s, n: s.emitted, "particles emitted at the end of the step ([[emitter]])"),
     "removed": (lambda s, n: s.removed, "particles removed at the end of the step ([[sink]], [domain])"),
-    "density_error_mean_pct": (lambda s, n: 100 * s.density_error_mean,
-                               "mean positive density error at the end-of-step positions [%]"),
+    "density_error_mean_pct": (
+        lambda s, n: 100 * s.density_error_mean,
+        "mean positive density error at the end-of-step positions [%]",
+    ),
     "density_error_max_pct": (lambda s, n: 100 * s.density_error_max, "largest density error [%]"),
     "divergence_error_pct": (lambda s, n: 100 * s.divergence_error, "dt mean(D rho/Dt) / rho0 after the solve [%]"),
     "pd_passes": (lambda s, n: s.pd_passes, "PF local/global passes (PF, IPSPH)"),
@@ -40,8 +43,10 @@ STEP_COLUMNS = {
     "solver_maxed": (lambda s, n: s.solver_maxed, "solves that stopped at their iteration cap"),
     "ms_step": (lambda s, n: 1000 * s.timings.get("step", 0.0), "wall time of the whole step [ms]"),
     # empty for a phase this method does not have (not a timing of 0 ms)
-    **{f"ms_{p}": ((lambda s, n, p=p: 1000 * s.timings[p] if p in s.timings else None), f"wall time: {what} [ms]")
-       for p, (_, what) in PHASES.items()},
+    **{
+        f"ms_{p}": ((lambda s, n, p=p: 1000 * s.timings[p] if p in s.timings else None), f"wall time: {what} [ms]")
+        for p, (_, what) in PHASES.items()
+    },
 }
 STATS_COLUMNS = tuple(STEP_COLUMNS)
 
@@ -69,8 +74,13 @@ class StatsWriter:
     rewritten atomically) and later rows are appended; without it the file is started afresh.
     """
 
-    def __init__(self, path: str | os.PathLike, columns: list[str] | tuple[str, ...] = STATS_COLUMNS,
-                 *, truncate_after_step: int | None = None):
+    def __init__(
+        self,
+        path: str | os.PathLike,
+        columns: list[str] | tuple[str, ...] = STATS_COLUMNS,
+        *,
+        truncate_after_step: int | None = None,
+    ):
         self.path = Path(path)
         self.columns = list(columns)
         header = ",".join(self.columns) + "\n"
@@ -81,8 +91,10 @@ class StatsWriter:
         try:
             self._file = open(self.path, "a", buffering=1, newline="")
         except OSError as exc:
-            raise WriteError(f"cannot open stats file {self.path} (resolved {self.path.resolve()}): "
-                             f"{exc.strerror or exc}; check write permission") from exc
+            raise WriteError(
+                f"cannot open stats file {self.path} (resolved {self.path.resolve()}): "
+                f"{exc.strerror or exc}; check write permission"
+            ) from exc
 
     def _rewrite(self, text: str) -> None:
         with atomic_path(self.path, "stats file") as tmp:
@@ -91,13 +103,16 @@ class StatsWriter:
 
     def _truncate(self, header: str, last_step: int) -> None:
         if not self.path.is_file():
-            raise OutputError(f"cannot resume stats file {self.path} (resolved {self.path.resolve()}): "
-                              f"it does not exist")
+            raise OutputError(
+                f"cannot resume stats file {self.path} (resolved {self.path.resolve()}): it does not exist"
+            )
         with open(self.path, newline="") as f:
             lines = f.read().splitlines(keepends=True)
         if not lines or lines[0].strip() != header.strip():
-            raise OutputError(f"cannot resume stats file {self.path}: its header does not match the "
-                              f"columns {','.join(self.columns)}; start a new output folder")
+            raise OutputError(
+                f"cannot resume stats file {self.path}: its header does not match the "
+                f"columns {','.join(self.columns)}; start a new output folder"
+            )
         i_step = self.columns.index("step")
         kept = [header]
         for line in lines[1:]:
@@ -121,8 +136,10 @@ class StatsWriter:
         try:
             self._file.write(line)
         except OSError as exc:
-            raise WriteError(f"cannot write stats file {self.path} (resolved {self.path.resolve()}): "
-                             f"{exc.strerror or exc}; check free disk space") from exc
+            raise WriteError(
+                f"cannot write stats file {self.path} (resolved {self.path.resolve()}): "
+                f"{exc.strerror or exc}; check free disk space"
+            ) from exc
 
     def close(self) -> None:
         if not self._file.closed:
@@ -143,8 +160,7 @@ def read_stats(path: str | os.PathLike) -> dict[str, np.ndarray]:
             header = f.readline().strip()
             body = f.read()
     except OSError as exc:
-        raise OutputError(f"cannot read stats file {path} (resolved {path.resolve()}): "
-                          f"{exc.strerror or exc}") from exc
+        raise OutputError(f"cannot read stats file {path} (resolved {path.resolve()}): {exc.strerror or exc}") from exc
     if not header:
         raise OutputError(f"stats file {path} (resolved {path.resolve()}) has no header")
     names = header.split(",")
@@ -153,6 +169,5 @@ def read_stats(path: str | os.PathLike) -> dict[str, np.ndarray]:
     rows = [ln for ln in body.splitlines() if ln.count(",") == len(names) - 1]
     if not rows:
         return {n: np.zeros(0) for n in names}
-    data = np.genfromtxt(rows, delimiter=",", dtype=np.float64, ndmin=2, missing_values="",
-                         filling_values=np.nan)
+    data = np.genfromtxt(rows, delimiter=",", dtype=np.float64, ndmin=2, missing_values="", filling_values=np.nan)
     return {n: np.ascontiguousarray(data[:, i]) for i, n in enumerate(names)}

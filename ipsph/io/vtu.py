@@ -5,6 +5,7 @@ ecosystem.md measures 0.04-0.07 s for 1M particles, 20-40x faster than pyvista/m
 A Float64 field-data array `TimeValue` carries the simulated time so ParaView shows it
 without the .pvd. meshio and pyvista read these files back.
 """
+
 from __future__ import annotations
 
 import os
@@ -49,8 +50,9 @@ def _vtk_array(name: str, values: np.ndarray):
     return arr
 
 
-def _particle_grid(points: np.ndarray, fields: dict[str, np.ndarray], time: float | None,
-                   field_data: dict[str, float] | None = None):
+def _particle_grid(
+    points: np.ndarray, fields: dict[str, np.ndarray], time: float | None, field_data: dict[str, float] | None = None
+):
     from vtkmodules.util.numpy_support import numpy_to_vtk, numpy_to_vtkIdTypeArray
     from vtkmodules.vtkCommonCore import vtkDoubleArray, vtkFloatArray, vtkPoints
     from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkUnstructuredGrid
@@ -113,9 +115,15 @@ def _write(writer, data, path: Path, compress: bool, what: str) -> int:
     return os.path.getsize(path)
 
 
-def write_particles(path: str | os.PathLike, points: np.ndarray, fields: dict[str, np.ndarray],
-                    time: float | None, *, compress: bool = False,
-                    field_data: dict[str, float] | None = None) -> int:
+def write_particles(
+    path: str | os.PathLike,
+    points: np.ndarray,
+    fields: dict[str, np.ndarray],
+    time: float | None,
+    *,
+    compress: bool = False,
+    field_data: dict[str, float] | None = None,
+) -> int:
     """Write one particle frame to `path` (.vtu) atomically; return its size in bytes.
 
     `time` is stored as the field-data value `TimeValue`; `field_data` adds more one-value
@@ -154,8 +162,7 @@ def read_particles(path: str | os.PathLike) -> tuple[np.ndarray, dict[str, np.nd
         msg = errors.messages[-1].strip().splitlines()[-1] if errors.messages else "no output"
         raise OutputError(f"cannot read particle frame {path} (resolved {path.resolve()}): {msg}")
     vpts = grid.GetPoints()
-    points = (vtk_to_numpy(vpts.GetData()).copy() if vpts is not None and grid.GetNumberOfPoints()
-              else np.zeros((0, 3)))
+    points = vtk_to_numpy(vpts.GetData()).copy() if vpts is not None and grid.GetNumberOfPoints() else np.zeros((0, 3))
     pd = grid.GetPointData()
     fields = {}
     for i in range(pd.GetNumberOfArrays()):

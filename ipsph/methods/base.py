@@ -5,6 +5,7 @@ A method owns no numpy: its arrays come from `self.be` (the backend), its scratc
 small per-method container (`DFSPHData`, `PFData`, `IPSPHData`), and its `step()` is the
 algorithm box, one backend pass or shared solve (`solves.py`) per line.
 """
+
 from __future__ import annotations
 
 import time
@@ -24,20 +25,22 @@ PAIR_CACHE_BYTES = 24  # per neighbour-list slot: mf grad W_ij, three float64
 @dataclass
 class StepReport:
     """The figures of one step (method.md section 5). Errors are fractions, not percent."""
+
     dt: float = 0.0
-    density_error_mean: float = 0.0   # mean_i max(rho_i/rho0 - 1, 0) at the end-of-step positions
-    density_error_max: float = 0.0    # max_i max(rho_i/rho0 - 1, 0)
-    divergence_error: float = 0.0     # dt * mean_i max(D rho_i/Dt, 0) / rho0 after the step's solve
+    density_error_mean: float = 0.0  # mean_i max(rho_i/rho0 - 1, 0) at the end-of-step positions
+    density_error_max: float = 0.0  # max_i max(rho_i/rho0 - 1, 0)
+    divergence_error: float = 0.0  # dt * mean_i max(D rho_i/Dt, 0) / rho0 after the step's solve
     pd_passes: int = 0
     divergence_iterations: int = 0
     density_iterations: int = 0
-    solver_maxed: int = 0             # solves that stopped at their iteration cap, unconverged
+    solver_maxed: int = 0  # solves that stopped at their iteration cap, unconverged
     timings: dict[str, float] = field(default_factory=dict)  # seconds per phase
 
 
 @dataclass(frozen=True)
 class Fluid:
     """The scalars every pass takes: fluid mass mf (one per scene), support H, rest density rho0."""
+
     mf: float
     h: float
     rho0: float
@@ -60,7 +63,7 @@ class PairCache:
         n, k = nl.fluid.shape
         if n == 0 or PAIR_CACHE_BYTES * n * k > self.budget:
             self._store = self.be.NO_PAIRS
-        elif self._store.shape != (n, 3, k):   # first use, or the list stride grew
+        elif self._store.shape != (n, 3, k):  # first use, or the list stride grew
             self._store = self.be.pair_buffer(n, k)
         return self._store
 
@@ -103,10 +106,10 @@ class Method:
         self.fluid = Fluid(float(mf), support(scene.particle_radius), float(scene.density0))
         self.g = be.asarray(scene.gravity)
         self.pairs = PairCache(be, self.cfg.pair_cache_mb)
-        state.zeros("pressure")                     # output field, follows reordering
+        state.zeros("pressure")  # output field, follows reordering
         self.dt_prev: float | None = None
         self.report = StepReport()
-        self.walls = None   # a rigid.WallDriver when walls move (Simulation sets it)
+        self.walls = None  # a rigid.WallDriver when walls move (Simulation sets it)
 
     # -- scratch at capacity, used at the active count ---------------------------------------
     def allocate_scratch(self, data_cls) -> None:
@@ -164,10 +167,15 @@ class Method:
         applied: the PF multipliers `lam` and the DFSPH-type stiffness totals `k` (rigid.WallDriver)."""
         if self.walls is not None:
             be = self.be
-            nl = self.lists   # the wall lists on the host (a device backend's are device arrays)
+            nl = self.lists  # the wall lists on the host (a device backend's are device arrays)
             walls_nl = SimpleNamespace(boundary=be.to_host(nl.boundary), boundary_count=be.to_host(nl.boundary_count))
-            self.walls.reaction(be.to_host(self.state.x), walls_nl, dt,
-                                None if lam is None else be.to_host(lam), tuple(be.to_host(a) for a in k))
+            self.walls.reaction(
+                be.to_host(self.state.x),
+                walls_nl,
+                dt,
+                None if lam is None else be.to_host(lam),
+                tuple(be.to_host(a) for a in k),
+            )
 
     @property
     def lists(self):

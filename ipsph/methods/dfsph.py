@@ -8,6 +8,7 @@ Per step (the densities and factors at x^n come from the end of the previous ste
     advect            x += dt v
     neighbours, rho, alpha at x^{n+1}                         (the end-of-step density error)
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -21,16 +22,16 @@ from .solves import SolveScratch, density_solve, divergence_solve
 class DFSPHData:
     """DFSPH's scratch: the densities at x^n (and the pair cache their pass filled), the solves'
     arrays, the viscosity pass's output velocities and density rate."""
+
     dens: Densities
     solve: SolveScratch
     v_out: object
     drho: object
-    pairs: object = None   # the pair cache returned by the last density pass (at x^n)
+    pairs: object = None  # the pair cache returned by the last density pass (at x^n)
 
     @classmethod
     def allocate(cls, be, n):
-        return cls(Densities.allocate(be, n), SolveScratch.allocate(be, n), be.zeros(n, (3,)), be.zeros(n),
-                   be.NO_PAIRS)
+        return cls(Densities.allocate(be, n), SolveScratch.allocate(be, n), be.zeros(n, (3,)), be.zeros(n), be.NO_PAIRS)
 
 
 class DFSPH(Method):
@@ -39,7 +40,7 @@ class DFSPH(Method):
 
     def __init__(self, *args):
         super().__init__(*args)
-        self.state.zeros("k_div")   # total divergence stiffness of the last step (warm start)
+        self.state.zeros("k_div")  # total divergence stiffness of the last step (warm start)
         self.state.zeros("k_dens")  # total density stiffness of the last step (warm start, pressure)
         self.allocate_scratch(DFSPHData)
 
@@ -49,8 +50,9 @@ class DFSPH(Method):
         d, st, fl = self.data, self.state, self.fluid
         self.neighbour_search()
         with self.timer("densities"):
-            d.pairs = self.be.densities(st.x, fl.mf, self.boundary, self.lists, fl.h, fl.rho0, d.dens,
-                                        self.pairs.buffer(self.lists))
+            d.pairs = self.be.densities(
+                st.x, fl.mf, self.boundary, self.lists, fl.h, fl.rho0, d.dens, self.pairs.buffer(self.lists)
+            )
             self.wall_rate(st.x, d.dens)
 
     def step(self, dt: float) -> StepReport:
@@ -59,16 +61,31 @@ class DFSPH(Method):
         if cfg.divergence.enabled:
             with self.timer("divergenceSolve"):
                 rep.divergence_iterations, rep.divergence_error, maxed = divergence_solve(
-                    be, fl, st.x, st.v, d.dens, nl, d.pairs, st.k_div, d.solve, dt, self.dt_prev, cfg.divergence)
+                    be, fl, st.x, st.v, d.dens, nl, d.pairs, st.k_div, d.solve, dt, self.dt_prev, cfg.divergence
+                )
                 rep.solver_maxed += maxed
         with self.timer("xsph"):
             be.accelerate(st.v, dt, self.g)
-            be.viscosity(st.x, st.v, fl.mf, d.dens, d.dens.lam, nl, fl.h, self.scene.viscosity,
-                         self.scene.standard_viscosity * dt, d.v_out, d.drho, be.NO_DISPLACEMENT, be.NO_PAIRS)
+            be.viscosity(
+                st.x,
+                st.v,
+                fl.mf,
+                d.dens,
+                d.dens.lam,
+                nl,
+                fl.h,
+                self.scene.viscosity,
+                self.scene.standard_viscosity * dt,
+                d.v_out,
+                d.drho,
+                be.NO_DISPLACEMENT,
+                be.NO_PAIRS,
+            )
             be.copy(st.v, d.v_out)
         with self.timer("densitySolve"):
-            rep.density_iterations, maxed = density_solve(be, fl, st.x, st.v, d.dens, nl, d.pairs, st.k_dens,
-                                                          d.solve, dt, self.dt_prev, cfg.dfsph)
+            rep.density_iterations, maxed = density_solve(
+                be, fl, st.x, st.v, d.dens, nl, d.pairs, st.k_dens, d.solve, dt, self.dt_prev, cfg.dfsph
+            )
             rep.solver_maxed += maxed
             be.stiffness_pressure(st.pressure, st.k_dens, d.dens.rho)
         self.wall_reaction(dt, k=(st.k_div, st.k_dens) if cfg.divergence.enabled else (st.k_dens,))

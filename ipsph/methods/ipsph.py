@@ -7,6 +7,7 @@ PF made less compressible by two DFSPH additions:
     velocities           v = (x - x^n) / dt;  XSPH
     divergenceSolve      DFSPH divergence solve at the projected positions   (paper Alg. 1)
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -19,6 +20,7 @@ from .solves import SolveScratch, divergence_solve
 @dataclass
 class IPSPHData(PFData):
     """PF's scratch plus the divergence solve's."""
+
     solve: SolveScratch = None
 
     @classmethod
@@ -48,13 +50,24 @@ class IPSPH(ProjectiveMethod):
         with self.timer("xsph"):
             # also sums this step's PF displacement for the next warm start (if on) and fills the
             # pair cache for the divergence solve at the same positions
-            pairs = self.velocities(dt, x_old, st.pd_warm if cfg.warm_start > 0.0 else None,
-                                    fill_pairs=div.enabled)
+            pairs = self.velocities(dt, x_old, st.pd_warm if cfg.warm_start > 0.0 else None, fill_pairs=div.enabled)
         if div.enabled:
             with self.timer("divergenceSolve"):
                 rep.divergence_iterations, rep.divergence_error, maxed = divergence_solve(
-                    be, self.fluid, st.x, st.v, d.dens, self.lists, pairs, st.k_div, d.solve, dt, self.dt_prev,
-                    div, rate=d.drho)
+                    be,
+                    self.fluid,
+                    st.x,
+                    st.v,
+                    d.dens,
+                    self.lists,
+                    pairs,
+                    st.k_div,
+                    d.solve,
+                    dt,
+                    self.dt_prev,
+                    div,
+                    rate=d.drho,
+                )
                 rep.solver_maxed += maxed
         be.pf_pressure(st.pressure, st.pd_lambda, self.fluid.rho0, dt)
         be.stiffness_pressure(st.pressure, st.k_div, d.dens.rho, add=True)

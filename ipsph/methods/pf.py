@@ -9,6 +9,7 @@ Per step:
 `ProjectiveMethod` holds what PF and IPSPH share; IPSPH wraps the paper's average-density loop
 around the same solve (`solves.pd_solve`).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -22,6 +23,7 @@ from .solves import pd_solve
 class PFData:
     """PF's scratch: the densities at the projected positions, the inertial target s, x^n, the
     spare position buffer of the local/global ping-pong, the viscosity pass's outputs."""
+
     dens: Densities
     s: object
     x_old: object
@@ -31,8 +33,14 @@ class PFData:
 
     @classmethod
     def allocate(cls, be, n):
-        return cls(Densities.allocate(be, n), be.zeros(n, (3,)), be.zeros(n, (3,)), be.zeros(n, (3,)),
-                   be.zeros(n, (3,)), be.zeros(n))
+        return cls(
+            Densities.allocate(be, n),
+            be.zeros(n, (3,)),
+            be.zeros(n, (3,)),
+            be.zeros(n, (3,)),
+            be.zeros(n, (3,)),
+            be.zeros(n),
+        )
 
 
 class ProjectiveMethod(Method):
@@ -60,7 +68,7 @@ class ProjectiveMethod(Method):
     def inertial_target(self, dt: float):
         """s = x + dt v + dt^2 g becomes the current position, neighbours at s; returns x^n in the new order."""
         self.be.advance(self.state.x, self.state.v, dt, self.g, self.data.x_old)
-        self.move_walls(dt)   # the projection sees moving walls where they are at t + dt
+        self.move_walls(dt)  # the projection sees moving walls where they are at t + dt
         (x_old,) = self.neighbour_search(self.data.x_old)
         return x_old
 
@@ -71,8 +79,23 @@ class ProjectiveMethod(Method):
         if warm_start > 0.0 and self.dt_prev is not None:  # Lam ~ p dt^2: rescaled to this step
             warm, scale = st.pd_warm, warm_start * (dt / self.dt_prev) ** 2
         passes, err, st.x, d.x_spare = pd_solve(
-            self.be, self.fluid, st.x, d.x_spare, d.s, st.pd_lambda, d.dens, self.boundary, self.lists, dt,
-            self.cfg.pf.stiffness, min_passes, max_passes, tol, warm, scale)
+            self.be,
+            self.fluid,
+            st.x,
+            d.x_spare,
+            d.s,
+            st.pd_lambda,
+            d.dens,
+            self.boundary,
+            self.lists,
+            dt,
+            self.cfg.pf.stiffness,
+            min_passes,
+            max_passes,
+            tol,
+            warm,
+            scale,
+        )
         return passes, err
 
     def velocities(self, dt: float, x_old, disp=None, fill_pairs: bool = False):
@@ -86,10 +109,21 @@ class ProjectiveMethod(Method):
         be, st, d, fl = self.be, self.state, self.data, self.fluid
         be.displacement_velocity(st.x, x_old, dt, st.v)
         self.wall_rate(st.x, d.dens)
-        pairs = be.viscosity(st.x, st.v, fl.mf, d.dens, st.pd_lambda, self.lists, fl.h, self.scene.viscosity,
-                             self.scene.standard_viscosity * dt, d.v_out, d.drho,
-                             be.NO_DISPLACEMENT if disp is None else disp,
-                             self.pairs.buffer(self.lists) if fill_pairs else be.NO_PAIRS)
+        pairs = be.viscosity(
+            st.x,
+            st.v,
+            fl.mf,
+            d.dens,
+            st.pd_lambda,
+            self.lists,
+            fl.h,
+            self.scene.viscosity,
+            self.scene.standard_viscosity * dt,
+            d.v_out,
+            d.drho,
+            be.NO_DISPLACEMENT if disp is None else disp,
+            self.pairs.buffer(self.lists) if fill_pairs else be.NO_PAIRS,
+        )
         be.copy(st.v, d.v_out)
         return pairs
 

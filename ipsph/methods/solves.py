@@ -6,6 +6,7 @@ and the pair cache the caller got from the pass that filled it at these position
 (`be.NO_PAIRS`: evaluate the kernel instead), and a `SolveScratch` for its per-iteration arrays.
 They hold no state between calls; warm starts arrive as arguments.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -20,6 +21,7 @@ MIN_NEIGHBOURS_WARM = 20  # the divergence warm start skips particles with fewer
 @dataclass
 class SolveScratch:
     """A pressure solve's per-iteration arrays: stiffness k, residual, warm-start stiffness."""
+
     k: object
     residual: object
     warm: object
@@ -29,8 +31,21 @@ class SolveScratch:
         return cls(be.zeros(n), be.zeros(n), be.zeros(n))
 
 
-def divergence_solve(be: Backend, fl: Fluid, x, v, dens: Densities, nl, pairs, k_total, sc: SolveScratch,
-                     dt: float, dt_prev: float | None, cfg: DivergenceConfig, rate=None) -> tuple[int, float, bool]:
+def divergence_solve(
+    be: Backend,
+    fl: Fluid,
+    x,
+    v,
+    dens: Densities,
+    nl,
+    pairs,
+    k_total,
+    sc: SolveScratch,
+    dt: float,
+    dt_prev: float | None,
+    cfg: DivergenceConfig,
+    rate=None,
+) -> tuple[int, float, bool]:
     """Make D rho/Dt ~ 0 on `v` at the positions `x` (in place on v) [BK17 Alg. 2].
 
     Iterates k_i = alpha_i max(D rho_i/Dt, 0) / dt and the velocity correction until
@@ -62,8 +77,20 @@ def divergence_solve(be: Backend, fl: Fluid, x, v, dens: Densities, nl, pairs, k
     return it, err, bool(err > eta)
 
 
-def density_solve(be: Backend, fl: Fluid, x, v, dens: Densities, nl, pairs, k_total, sc: SolveScratch,
-                  dt: float, dt_prev: float | None, cfg: DFSPHConfig) -> tuple[int, bool]:
+def density_solve(
+    be: Backend,
+    fl: Fluid,
+    x,
+    v,
+    dens: Densities,
+    nl,
+    pairs,
+    k_total,
+    sc: SolveScratch,
+    dt: float,
+    dt_prev: float | None,
+    cfg: DFSPHConfig,
+) -> tuple[int, bool]:
     """Make rho + dt D rho/Dt(v) ~ rho0 (in place on v) [BK17 Alg. 3]: k_i = alpha_i (rho*_i - rho0)
     / dt^2 until mean(rho* - rho0) <= eta rho0. Warm start: half of `k_total` rescaled by
     (dt_prev/dt)^2, capped, everywhere. Returns (iterations, hit_cap)."""
@@ -86,9 +113,24 @@ def density_solve(be: Backend, fl: Fluid, x, v, dens: Densities, nl, pairs, k_to
     return it, bool(err > eta)
 
 
-def pd_solve(be: Backend, fl: Fluid, x, x_spare, s, lam_sum, dens: Densities, walls, nl, dt: float,
-             stiffness: float, min_passes: int, max_passes: int, tol: float,
-             warm=None, warm_scale: float = 0.0):
+def pd_solve(
+    be: Backend,
+    fl: Fluid,
+    x,
+    x_spare,
+    s,
+    lam_sum,
+    dens: Densities,
+    walls,
+    nl,
+    dt: float,
+    stiffness: float,
+    min_passes: int,
+    max_passes: int,
+    tol: float,
+    warm=None,
+    warm_scale: float = 0.0,
+):
     """Local/global passes from x = s until the mean density error <= tol [WKB16 sec. 4; paper Alg. 2].
 
     Each pass: local step (`be.densities` at x) -> stop test -> global step (closed form,
@@ -104,10 +146,10 @@ def pd_solve(be: Backend, fl: Fluid, x, x_spare, s, lam_sum, dens: Densities, wa
 
     Returns (passes, mean error, x, x_spare): the arrays holding the result and the spare.
     """
-    be.copy(s, x)                       # the inertial target
+    be.copy(s, x)  # the inertial target
     a = dt * dt * stiffness
     if warm_scale > 0.0:
-        be.axpy(x, warm_scale / fl.rho0, warm)   # pf_global's pure displacement (a -> infinity) by c Lam
+        be.axpy(x, warm_scale / fl.rho0, warm)  # pf_global's pure displacement (a -> infinity) by c Lam
         be.scale(lam_sum, warm_scale)
     else:
         be.fill(lam_sum, 0.0)

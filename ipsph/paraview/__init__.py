@@ -9,6 +9,7 @@ ParaView's SPH interpolators need settings their defaults get silently wrong (do
 the cubic kernel with Spatial Step = H / 2 (VTK's cubic reaches two spatial steps; our support is
 H = 4r, kernels.py), Density Array `density`, Mass Array `mass`, and Shepard normalisation.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -25,9 +26,9 @@ from ..errors import OutputError
 __all__ = ["sph_spatial_step", "frame_field_data", "view_settings", "write_view_script", "TEMPLATE"]
 
 TEMPLATE = Path(__file__).with_name("view_script.py")
-SUPPORT_PER_RADIUS = 4.0        # H = 4r (kernels.py, simulation.Simulation.support)
-VTK_CUBIC_REACH = 2.0           # vtkSPHCubicKernel is zero beyond 2 x its spatial step
-LINE_SAMPLES_PER_RADIUS = 2.0   # default probe line: a sample every r / 2
+SUPPORT_PER_RADIUS = 4.0  # H = 4r (kernels.py, simulation.Simulation.support)
+VTK_CUBIC_REACH = 2.0  # vtkSPHCubicKernel is zero beyond 2 x its spatial step
+LINE_SAMPLES_PER_RADIUS = 2.0  # default probe line: a sample every r / 2
 MAX_LINE_SAMPLES = 2000
 DENSITY_ARRAY, MASS_ARRAY = "density", "mass"
 DEJAVU_SANS = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf"  # Debian's fonts-dejavu-core, a ParaView dependency
@@ -46,8 +47,10 @@ def frame_field_data(particle_radius: float) -> dict[str, float]:
     field arrays put the first point array at raw offset 48, which the third field array's
     rewritten offset also reads, and meshio then reads `velocity` as 2 values. Float64, Float64,
     Float32 (44 bytes) does not collide; tests/test_end_to_end.py reads every frame with meshio."""
-    return {"particle_radius": float(particle_radius),
-            "sph_spatial_step": np.float32(sph_spatial_step(particle_radius))}
+    return {
+        "particle_radius": float(particle_radius),
+        "sph_spatial_step": np.float32(sph_spatial_step(particle_radius)),
+    }
 
 
 def _render_config(run: dict):
@@ -67,6 +70,7 @@ def _speed_range(out: Path, run: dict, config) -> list[float]:
     rng = (run.get("render") or {}).get("speed_range") or config.speed_range
     if not rng:
         from ..io.stats import read_stats
+
         v = np.zeros(0)
         if (out / out_io.STATS_CSV).is_file():
             v = read_stats(out / out_io.STATS_CSV).get("max_speed", v)
@@ -97,8 +101,9 @@ def view_settings(out_dir) -> dict:
 
     out = Path(out_dir)
     if not (out / out_io.RUN_JSON).is_file() or not (out / out_io.RUN_PVD).is_file():
-        raise OutputError(f"{out} (resolved {out.resolve()}) holds no run.json and run.pvd: "
-                          f"give the output folder of `ipsph run`")
+        raise OutputError(
+            f"{out} (resolved {out.resolve()}) holds no run.json and run.pvd: give the output folder of `ipsph run`"
+        )
     run = read_run_json(out / out_io.RUN_JSON)
     series = PvdSeries.load(out / out_io.RUN_PVD)
     if not series.frames:
@@ -112,18 +117,32 @@ def view_settings(out_dir) -> dict:
     fluid_bounds = np.stack([x0.min(axis=0), x0.max(axis=0)], axis=1) if len(x0) else bounds
     gravity = sim.get("gravity", (0.0, -9.81, 0.0))
     p1, p2, n = _probe_line(bounds, fluid_bounds, gravity, r)
-    pos, focal, up = render.camera_for_view(bounds, config.view, width=config.width, height=config.height,
-                                            camera_position=config.camera_position,
-                                            focal_point=config.focal_point, view_up=config.view_up)
+    pos, focal, up = render.camera_for_view(
+        bounds,
+        config.view,
+        width=config.width,
+        height=config.height,
+        camera_position=config.camera_position,
+        focal_point=config.focal_point,
+        view_up=config.view_up,
+    )
     fluid_series = out_io.part("fluid").series
-    title = " - ".join(str(x) for x in (scene.get("name"), (run.get("method") or "").upper(),
-                                        f"{run['fluid_particles']:,} particles" if run.get("fluid_particles")
-                                        else None) if x)
+    title = " - ".join(
+        str(x)
+        for x in (
+            scene.get("name"),
+            (run.get("method") or "").upper(),
+            f"{run['fluid_particles']:,} particles" if run.get("fluid_particles") else None,
+        )
+        if x
+    )
     return {
         "folder": str(out.resolve()),
-        "files": {"fluid": fluid_series,
-                  "walls": out_io.BOUNDARY_SURFACE if (out / out_io.BOUNDARY_SURFACE).is_file() else None,
-                  "wall_particles": out_io.BOUNDARY_VTU if (out / out_io.BOUNDARY_VTU).is_file() else None},
+        "files": {
+            "fluid": fluid_series,
+            "walls": out_io.BOUNDARY_SURFACE if (out / out_io.BOUNDARY_SURFACE).is_file() else None,
+            "wall_particles": out_io.BOUNDARY_VTU if (out / out_io.BOUNDARY_VTU).is_file() else None,
+        },
         "particle_radius": r,
         "density0": float(sim.get("density0", 1000.0)),
         "gravity": [float(v) for v in gravity],
@@ -139,10 +158,20 @@ def view_settings(out_dir) -> dict:
         "title_colour": list(render._rgb(render.TITLE_COLOUR)),
         "font_files": [render._font_file(), DEJAVU_SANS],
         "image_size": [int(config.width), int(config.height)],
-        "camera": {"position": [float(v) for v in pos], "focal_point": [float(v) for v in focal],
-                   "view_up": [float(v) for v in up], "view_angle": render.VIEW_ANGLE_DEG},
-        "sph": {"point1": p1, "point2": p2, "resolution": n, "spatial_step": sph_spatial_step(r),
-                "density_array": DENSITY_ARRAY, "mass_array": MASS_ARRAY},
+        "camera": {
+            "position": [float(v) for v in pos],
+            "focal_point": [float(v) for v in focal],
+            "view_up": [float(v) for v in up],
+            "view_angle": render.VIEW_ANGLE_DEG,
+        },
+        "sph": {
+            "point1": p1,
+            "point2": p2,
+            "resolution": n,
+            "spatial_step": sph_spatial_step(r),
+            "density_array": DENSITY_ARRAY,
+            "mass_array": MASS_ARRAY,
+        },
     }
 
 

@@ -23,6 +23,7 @@ What it builds, with this run's values filled in (SETTINGS below):
 Written by `ipsph run` and `ipsph paraview OUT` (ipsph/paraview/); files are found next to this
 script, so the folder can be moved. It needs ParaView 5.10 or later and nothing from ipsph.
 """
+
 import argparse
 import os
 import sys
@@ -152,8 +153,9 @@ def build(s=None, where=None, text_scale=1.0):
         ed.Opacity = s["edge_opacity"]
         out["walls"], out["wall edges"] = walls, edges
     if files.get("wall_particles"):
-        wp = pv.XMLUnstructuredGridReader(registrationName="wall particles",
-                                          FileName=[os.path.join(where, files["wall_particles"])])
+        wp = pv.XMLUnstructuredGridReader(
+            registrationName="wall particles", FileName=[os.path.join(where, files["wall_particles"])]
+        )
         pv.Hide(wp, view)
         out["wall particles"] = wp
 
@@ -229,8 +231,9 @@ def main(argv=None):
     p.add_argument("--screenshot", metavar="PNG", help="render the view to PNG and exit (headless)")
     p.add_argument("--size", type=int, nargs=2, metavar=("W", "H"), help="screenshot size (default: the renders')")
     p.add_argument("--line-csv", metavar="CSV", help="write the SPH line's (Shepard-normalised) values as CSV")
-    p.add_argument("--every-frame", action="store_true",
-                   help="with --line-csv: every frame into the one CSV, with a Time column")
+    p.add_argument(
+        "--every-frame", action="store_true", help="with --line-csv: every frame into the one CSV, with a Time column"
+    )
     p.add_argument("--show-line", action="store_true", help="show the SPH line in the view")
     args, _ = p.parse_known_args(argv if argv is not None else [])
     size = list(args.size or SETTINGS["image_size"])

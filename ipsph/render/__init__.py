@@ -21,6 +21,7 @@ off; one render window reused for the whole series (a new one per frame leaks me
     png.py      PNG files
     output.py   `ipsph render OUT`: every frame of an output folder, and videos
 """
+
 from __future__ import annotations
 
 from .camera import FRAME_LEFT, FRAME_RIGHT, FRAME_V, camera_for_view
@@ -28,15 +29,55 @@ from .frame import FrameRenderer
 from .gl import GL_HINT, gl_available
 from .output import make_video, read_surface, render_output
 from .png import save_png
-from .style import (BACKGROUND, EDGE_OPACITY, ENGINES, SCALAR_BAR_LENGTH, SCALAR_BAR_POSITION, SPEED_COLOURS,
-                    SPEED_TITLE, SURFACE_COLOUR, SURFACE_OPACITY, TIME_LABEL_POS, TITLE_COLOUR, VIEW_ANGLE_DEG, VIEWS,
-                    _rgb, default_speed_range, speed_colormap, speed_lut_rgb)
+from .style import (
+    BACKGROUND,
+    EDGE_OPACITY,
+    ENGINES,
+    SCALAR_BAR_LENGTH,
+    SCALAR_BAR_POSITION,
+    SPEED_COLOURS,
+    SPEED_TITLE,
+    SURFACE_COLOUR,
+    SURFACE_OPACITY,
+    TIME_LABEL_POS,
+    TITLE_COLOUR,
+    VIEW_ANGLE_DEG,
+    VIEWS,
+    _rgb,
+    default_speed_range,
+    speed_colormap,
+    speed_lut_rgb,
+)
 from .text import _font_file
 
 __all__ = [
-    "gl_available", "speed_colormap", "FrameRenderer", "default_speed_range", "camera_for_view",
-    "render_output", "make_video", "VIEWS", "GL_HINT", "read_surface", "save_png", "speed_lut_rgb",
-    "BACKGROUND", "ENGINES", "SPEED_COLOURS", "SPEED_TITLE", "SURFACE_COLOUR", "SURFACE_OPACITY",
-    "TIME_LABEL_POS", "VIEW_ANGLE_DEG", "EDGE_OPACITY", "SCALAR_BAR_LENGTH", "SCALAR_BAR_POSITION", "TITLE_COLOUR",
-    "FRAME_LEFT", "FRAME_RIGHT", "FRAME_V", "_rgb", "_font_file",
+    "gl_available",
+    "speed_colormap",
+    "FrameRenderer",
+    "default_speed_range",
+    "camera_for_view",
+    "render_output",
+    "make_video",
+    "VIEWS",
+    "GL_HINT",
+    "read_surface",
+    "save_png",
+    "speed_lut_rgb",
+    "BACKGROUND",
+    "ENGINES",
+    "SPEED_COLOURS",
+    "SPEED_TITLE",
+    "SURFACE_COLOUR",
+    "SURFACE_OPACITY",
+    "TIME_LABEL_POS",
+    "VIEW_ANGLE_DEG",
+    "EDGE_OPACITY",
+    "SCALAR_BAR_LENGTH",
+    "SCALAR_BAR_POSITION",
+    "TITLE_COLOUR",
+    "FRAME_LEFT",
+    "FRAME_RIGHT",
+    "FRAME_V",
+    "_rgb",
+    "_font_file",
 ]

@@ -1,4 +1,5 @@
 """The fixed camera of a series: a named view or the scene's own, framed off the colour bar."""
+
 from __future__ import annotations
 
 import math
@@ -15,8 +16,17 @@ from .style import VIEW_ANGLE_DEG, VIEWS
 FRAME_LEFT, FRAME_RIGHT, FRAME_V = -0.96, 0.74, 0.86
 
 
-def camera_for_view(bounds, view: str = "front", *, width: int = 1280, height: int = 720,
-                    camera_position=None, focal_point=None, view_up=None, margin: float = 1.08):
+def camera_for_view(
+    bounds,
+    view: str = "front",
+    *,
+    width: int = 1280,
+    height: int = 720,
+    camera_position=None,
+    focal_point=None,
+    view_up=None,
+    margin: float = 1.08,
+):
     """Camera (position, focal point, view up) that frames the box `bounds` for a named view or an
     explicit camera, off the colour bar.
 
@@ -40,18 +50,20 @@ def camera_for_view(bounds, view: str = "front", *, width: int = 1280, height: i
             up = np.array([0.0, 0.0, -1.0])  # looking straight along y
     else:
         if view not in VIEWS:
-            raise ConfigError(f"render.view = {view!r} is not a named view; allowed: {', '.join(VIEWS)} "
-                              f"(or give render.camera_position)")
+            raise ConfigError(
+                f"render.view = {view!r} is not a named view; allowed: {', '.join(VIEWS)} "
+                f"(or give render.camera_position)"
+            )
         direction, up0 = VIEWS[view]
         w = np.asarray(direction, dtype=float)
-        w = w / np.linalg.norm(w)                # camera looks along -w
+        w = w / np.linalg.norm(w)  # camera looks along -w
         up = np.asarray(view_up if view_up is not None else up0, dtype=float)
         user_dist = 0.0
     right = np.cross(up, w)
     right /= np.linalg.norm(right)
     up = np.cross(w, right)
     corners = np.array([[x, y, z] for x in b[0] for y in b[1] for z in b[2]]) - centre
-    cr, cu, cd = corners @ right, corners @ up, corners @ w   # cd: towards the camera
+    cr, cu, cd = corners @ right, corners @ up, corners @ w  # cd: towards the camera
     tan_v = math.tan(math.radians(VIEW_ANGLE_DEG) / 2.0)
     tan_h = tan_v * width / height
     a_right, a_left, a_v = FRAME_RIGHT * tan_h, -FRAME_LEFT * tan_h, FRAME_V * tan_v
@@ -70,14 +82,14 @@ def camera_for_view(bounds, view: str = "front", *, width: int = 1280, height: i
     hi = max(2.0 * lo, float(np.linalg.norm(corners, axis=1).max()) * 4.0, 1e-6)
     while not fits(hi):
         hi *= 2.0
-    for _ in range(60):                          # the smallest distance that fits
+    for _ in range(60):  # the smallest distance that fits
         mid = 0.5 * (lo + hi)
         lo, hi = (lo, mid) if fits(mid) else (mid, hi)
     dist = max(hi * margin, user_dist)
     s_lo, s_hi, t_lo, t_hi = shifts(dist)
-    if camera_position is not None:              # keep the user's focal point where it fits
+    if camera_position is not None:  # keep the user's focal point where it fits
         s, t = float(np.clip(0.0, s_lo, s_hi)), float(np.clip(0.0, t_lo, t_hi))
-    else:                                        # centred in the frame region
+    else:  # centred in the frame region
         s, t = 0.5 * (s_lo + s_hi), 0.5 * (t_lo + t_hi)
     focal = centre + s * right + t * up
     pos = focal + dist * w

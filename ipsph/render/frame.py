@@ -1,6 +1,7 @@
 """FrameRenderer: one offscreen VTK window reused for a series of frames, two engines
 ("splat": static layers once through VTK, particles by render.splat; "vtk": all through VTK, the
 reference the tests hold the splat engine to), and the surface mode."""
+
 from __future__ import annotations
 
 import math
@@ -13,7 +14,20 @@ from ..model import RenderConfig
 from .camera import camera_for_view
 from .gl import _use_egl
 from .png import save_png
-from .style import (BACKGROUND, EDGE_OPACITY, ENGINES, SPEED_COLOURS, SURFACE_COLOUR, SURFACE_OPACITY, TIME_LABEL_POS, TITLE_COLOUR, VIEW_ANGLE_DEG, _rgb, _ui_scale, speed_lut_rgb)
+from .style import (
+    BACKGROUND,
+    EDGE_OPACITY,
+    ENGINES,
+    SPEED_COLOURS,
+    SURFACE_COLOUR,
+    SURFACE_OPACITY,
+    TIME_LABEL_POS,
+    TITLE_COLOUR,
+    VIEW_ANGLE_DEG,
+    _rgb,
+    _ui_scale,
+    speed_lut_rgb,
+)
 from .text import _draw_text, _scalar_bar, _set_font
 
 
@@ -37,9 +51,17 @@ class FrameRenderer:
     default scene cost in all (docs/rendering.md). pyvista still reads and filters the meshes.
     """
 
-    def __init__(self, config: RenderConfig, bounds, particle_radius: float,
-                 speed_range: tuple[float, float], surface=None, *, title: str | None = None,
-                 engine: str = "splat"):
+    def __init__(
+        self,
+        config: RenderConfig,
+        bounds,
+        particle_radius: float,
+        speed_range: tuple[float, float],
+        surface=None,
+        *,
+        title: str | None = None,
+        engine: str = "splat",
+    ):
         if engine not in ENGINES:
             raise ConfigError(f"render engine {engine!r} is not one of {', '.join(ENGINES)}")
         lo, hi = (float(v) for v in speed_range)
@@ -86,7 +108,7 @@ class FrameRenderer:
         mapper.SetInputData(self._poly)
         mapper.SetLookupTable(lut)
         mapper.SetScalarRange(lo, hi)
-        mapper.SetScalarModeToUsePointData()        # the active point scalars: "speed"
+        mapper.SetScalarModeToUsePointData()  # the active point scalars: "speed"
         mapper.SetColorModeToMapScalars()
         mapper.ScalarVisibilityOn()
         mapper.SetEmissive(False)
@@ -108,8 +130,8 @@ class FrameRenderer:
         k = _ui_scale(h)
         bar = _scalar_bar(lut, k)
         ren.AddViewProp(bar)
-        self._overlays = [bar]   # 2D actors drawn over everything
-        self._walls = []         # the boundary surface and its edges
+        self._overlays = [bar]  # 2D actors drawn over everything
+        self._walls = []  # the boundary surface and its edges
         if surface is not None and surface.GetNumberOfPoints():
             from vtkmodules.vtkFiltersCore import vtkFeatureEdges
 
@@ -129,13 +151,20 @@ class FrameRenderer:
 
         self._time_text = self._add_text("", TIME_LABEL_POS(h), max(round(28 * k), 6), "#ffffff")
         if title:
-            self._overlays.append(self._add_text(title, (round(18 * k), round(14 * k)), max(round(20 * k), 6),
-                                                 TITLE_COLOUR))
-        self._layers = None      # the static layers of the splat engine, drawn at the first frame
+            self._overlays.append(
+                self._add_text(title, (round(18 * k), round(14 * k)), max(round(20 * k), 6), TITLE_COLOUR)
+            )
+        self._layers = None  # the static layers of the splat engine, drawn at the first frame
 
-        pos, focal, up = camera_for_view(bounds, config.view, width=w, height=h,
-                                         camera_position=config.camera_position,
-                                         focal_point=config.focal_point, view_up=config.view_up)
+        pos, focal, up = camera_for_view(
+            bounds,
+            config.view,
+            width=w,
+            height=h,
+            camera_position=config.camera_position,
+            focal_point=config.focal_point,
+            view_up=config.view_up,
+        )
         cam = ren.GetActiveCamera()
         cam.SetPosition(*pos)
         cam.SetFocalPoint(*focal)
@@ -171,6 +200,7 @@ class FrameRenderer:
         """The moving walls' surfaces of the next frame (OUT/bodies/*.vtp): drawn like the walls,
         but opaque (they are solid bodies); the splat engine redraws its wall layers for them."""
         from .style import MOVING_OPACITY
+
         if getattr(self, "_moving", None) is None:
             self._moving = self._add_surface(mesh, MOVING_OPACITY, lighting=True, cull_front=False)
             self._walls.append(self._moving)
@@ -191,16 +221,14 @@ class FrameRenderer:
         self.renderer.AddViewProp(actor)
         return actor
 
-    def render(self, points: np.ndarray, velocities: np.ndarray | None, out_png, *,
-               time: float | None = None) -> Path:
+    def render(self, points: np.ndarray, velocities: np.ndarray | None, out_png, *, time: float | None = None) -> Path:
         """Render one frame to `out_png` (parent folders are created); return its path."""
         return save_png(self.image(points, velocities, time=time), out_png)
 
     def image(self, points: np.ndarray, velocities: np.ndarray | None, *, time: float | None = None) -> np.ndarray:
         """One frame as a new (h, w, 3) uint8 array (rows top down), not yet written."""
         pts = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
-        speed = (np.linalg.norm(velocities, axis=1) if velocities is not None and len(velocities)
-                 else np.zeros(len(pts)))
+        speed = np.linalg.norm(velocities, axis=1) if velocities is not None and len(velocities) else np.zeros(len(pts))
         label = "" if time is None else f"t = {time:.3f} s"
         return self._splat_frame(pts, speed, label) if self.engine == "splat" else self._vtk_frame(pts, speed, label)
 
@@ -227,7 +255,7 @@ class FrameRenderer:
             prop.SetColor(*_rgb(SPEED_COLOURS[2]))
             prop.SetAmbient(0.08)
             prop.SetDiffuse(0.85)
-            prop.SetSpecular(0.35)        # a wet highlight
+            prop.SetSpecular(0.35)  # a wet highlight
             prop.SetSpecularPower(40.0)
             self.renderer.AddActor(actor)
             self._mesh_actor = actor
@@ -307,9 +335,9 @@ class FrameRenderer:
         near, far = self._clipping
         dist = np.empty((h, w), np.float32)
         for r in range(0, h, 128):  # row blocks: no full-frame float64 temporaries
-            z = zb[r:r + 128].astype(np.float64)
+            z = zb[r : r + 128].astype(np.float64)
             d = 2.0 * near * far / ((far + near) - (2.0 * z - 1.0) * (far - near))
-            dist[r:r + 128] = np.where(z >= 1.0, np.inf, d)
+            dist[r : r + 128] = np.where(z >= 1.0, np.inf, d)
         return dist
 
     def _bake(self) -> None:
@@ -341,15 +369,24 @@ class FrameRenderer:
             static[rows] = np.clip(f + 0.5, 0, 255).astype(np.uint8)
 
         cam = self.renderer.GetActiveCamera()
-        view = np.array([[cam.GetViewTransformMatrix().GetElement(i, j) for j in range(4)]
-                         for i in range(4)])
+        view = np.array([[cam.GetViewTransformMatrix().GetElement(i, j) for j in range(4)] for i in range(4)])
         h, w = int(self.config.height), int(self.config.width)
         f_px = 0.5 * h / math.tan(math.radians(cam.GetViewAngle()) / 2.0)
-        self._layers = dict(static=static, wall_rgb=wall_rgb, wall_t=wall_t, wall_depth=wall_depth,
-                            over_rgb=over_rgb, over_t=over_t, view=view, f_px=f_px,
-                            colours=(255.0 * self._lut_rgb).astype(np.float32),
-                            zbuf=np.full((h, w), np.inf, np.float32), owner=np.full((h, w), -1, np.int32),
-                            shade=np.empty((h, w), np.float32), light=splat.LIGHT.copy())
+        self._layers = dict(
+            static=static,
+            wall_rgb=wall_rgb,
+            wall_t=wall_t,
+            wall_depth=wall_depth,
+            over_rgb=over_rgb,
+            over_t=over_t,
+            view=view,
+            f_px=f_px,
+            colours=(255.0 * self._lut_rgb).astype(np.float32),
+            zbuf=np.full((h, w), np.inf, np.float32),
+            owner=np.full((h, w), -1, np.int32),
+            shade=np.empty((h, w), np.float32),
+            light=splat.LIGHT.copy(),
+        )
 
     def prepare(self) -> None:
         """Open the GL context and draw the static layers now rather than at the first frame."""
@@ -373,11 +410,21 @@ class FrameRenderer:
         # front to back: a pixel already covered by a nearer sphere is skipped before any shading
         order = np.argsort(dist, kind="stable")
         sx, sy, dist, rad, colour = sx[order], sy[order], dist[order], rad[order], L["colours"][k[order]]
-        box = splat.splat(sx, sy, dist, rad, self.particle_radius, L["light"], L["zbuf"], L["owner"],
-                          L["shade"])
+        box = splat.splat(sx, sy, dist, rad, self.particle_radius, L["light"], L["zbuf"], L["owner"], L["shade"])
         img = L["static"].copy()
-        splat.composite(box, L["owner"], L["shade"], L["zbuf"], colour, L["wall_depth"],
-                        L["wall_rgb"], L["wall_t"], L["over_rgb"], L["over_t"], img)
+        splat.composite(
+            box,
+            L["owner"],
+            L["shade"],
+            L["zbuf"],
+            colour,
+            L["wall_depth"],
+            L["wall_rgb"],
+            L["wall_t"],
+            L["over_rgb"],
+            L["over_t"],
+            img,
+        )
         if label:
             _draw_text(img, label, self._time_text.GetTextProperty(), TIME_LABEL_POS(h))
         return img

@@ -1,5 +1,6 @@
 """The headless GL stack: EGL before the first render window, and a probe in a subprocess
 (a missing GL stack segfaults, so the probe must not run in the caller)."""
+
 from __future__ import annotations
 
 import functools
@@ -9,8 +10,7 @@ import subprocess
 import sys
 
 
-GL_HINT = ("install an EGL + Mesa stack (apt-get install -y --no-install-recommends libegl1 "
-            "libgl1-mesa-dri)")
+GL_HINT = "install an EGL + Mesa stack (apt-get install -y --no-install-recommends libegl1 libgl1-mesa-dri)"
 
 
 _PROBE = """
@@ -55,8 +55,7 @@ def gl_available(timeout: float = 60.0) -> tuple[bool, str]:
     env = dict(os.environ)
     env.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
     try:
-        proc = subprocess.run([sys.executable, "-c", _PROBE], env=env, capture_output=True,
-                              text=True, timeout=timeout)
+        proc = subprocess.run([sys.executable, "-c", _PROBE], env=env, capture_output=True, text=True, timeout=timeout)
     except subprocess.TimeoutExpired:
         return False, f"offscreen GL probe did not finish in {timeout:.0f} s; {GL_HINT}"
     except OSError as exc:

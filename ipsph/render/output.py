@@ -1,4 +1,5 @@
 """Rendering an output folder (`ipsph render OUT`): PNGs of every frame, and videos."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -69,9 +70,17 @@ def _speed_range_for(out: Path, run: dict, frames: list[tuple[float, str]], give
     return (float(used[0]), float(used[1])) if used else (0.0, 1.0)
 
 
-def render_output(out_dir, *, speed_range=None, config_overrides: dict | None = None,
-                  video: str | None = None, fps: float | None = None,
-                  frames: slice | None = None, progress=None, mode: str | None = None) -> list[Path]:
+def render_output(
+    out_dir,
+    *,
+    speed_range=None,
+    config_overrides: dict | None = None,
+    video: str | None = None,
+    fps: float | None = None,
+    frames: slice | None = None,
+    progress=None,
+    mode: str | None = None,
+) -> list[Path]:
     """Render every frame of a finished or still-running output folder to OUT/renders/*.png.
 
     Reads run.json (render settings, radius, bounds), run.pvd (frames written so far) and
@@ -87,8 +96,10 @@ def render_output(out_dir, *, speed_range=None, config_overrides: dict | None = 
 
     out = Path(out_dir)
     if not (out / RUN_PVD).is_file():
-        raise OutputError(f"{out} (resolved {out.resolve()}) is not an ipsph output folder: no {RUN_PVD}; "
-                          f"give the folder that `ipsph run` wrote")
+        raise OutputError(
+            f"{out} (resolved {out.resolve()}) is not an ipsph output folder: no {RUN_PVD}; "
+            f"give the folder that `ipsph run` wrote"
+        )
     if video not in (None, "mp4", "gif"):
         raise ConfigError(f"video = {video!r} is not a video format; allowed: mp4, gif")
     run = read_run_json(out / RUN_JSON) if (out / RUN_JSON).is_file() else {}
@@ -98,30 +109,43 @@ def render_output(out_dir, *, speed_range=None, config_overrides: dict | None = 
         raise ConfigError(f"render mode {mode!r} is not one of {', '.join(RENDER_MODES)}")
     if mode == "surface":
         from ..surface import surface_output
+
         surface_output(out)  # the frames without a surface yet (one warning line per failed frame)
     series = PvdSeries.load(out / RUN_PVD)
     todo = list(enumerate(series.frames))
     if frames is not None:
         todo = todo[frames]
-    rng = _speed_range_for(out, run, series.frames, speed_range if speed_range is not None
-                           else config.speed_range)
+    rng = _speed_range_for(out, run, series.frames, speed_range if speed_range is not None else config.speed_range)
     surface = read_surface(out / BOUNDARY_SURFACE)
 
     radius = run.get("particle_radius")
     bounds = run.get("domain_bounds")
     if bounds is None or radius is None:  # no provenance: fit the data
         from vtkmodules.util.numpy_support import vtk_to_numpy
+
         pts = [read_particles(out / f)[0] for _, (_, f) in todo[:1]]
-        walls = [vtk_to_numpy(surface.GetPoints().GetData())] if surface is not None and surface.GetNumberOfPoints() else []
+        walls = (
+            [vtk_to_numpy(surface.GetPoints().GetData())] if surface is not None and surface.GetNumberOfPoints() else []
+        )
         allp = np.concatenate(pts + walls) if pts else np.zeros((1, 3))
         bounds = bounds or [v for i in range(3) for v in (allp[:, i].min(), allp[:, i].max())]
         if radius is None:
             radius = 0.01 * float(np.ptp(allp, axis=0).max() or 1.0)
     scene = run.get("scene") or {}
-    title = " - ".join(str(x) for x in (scene.get("name"), (run.get("method") or "").upper(),  # no '|': VTK drops it
-                                        "emitters and sinks" if run.get("flow") else  # the count varies
-                                        f"{run['fluid_particles']:,} particles" if run.get("fluid_particles") else None)
-                       if x)
+    title = " - ".join(
+        str(x)
+        for x in (
+            scene.get("name"),
+            (run.get("method") or "").upper(),  # no '|': VTK drops it
+            "emitters and sinks"
+            if run.get("flow")
+            # the count varies
+            else f"{run['fluid_particles']:,} particles"
+            if run.get("fluid_particles")
+            else None,
+        )
+        if x
+    )
     if fps is None:
         fps = float((scene.get("output") or {}).get("fps") or 25.0)
 
@@ -130,7 +154,7 @@ def render_output(out_dir, *, speed_range=None, config_overrides: dict | None = 
     with FrameRenderer(config, bounds, radius, rng, surface, title=title) as r:
         for k, (i, (t, f)) in enumerate(todo):
             png = out / RENDERS_DIR / f"frame_{_frame_index(f, i):06d}.png"
-            moving = series.frame_parts[i].get("bodies")   # moving walls and bodies, where they are
+            moving = series.frame_parts[i].get("bodies")  # moving walls and bodies, where they are
             if moving is not None and (out / moving).is_file():
                 r.set_moving(read_surface(out / moving))
             if mode == "surface":
@@ -159,8 +183,15 @@ def make_video(pngs, path, fps: float) -> Path:
     if ext == ".gif":
         writer = imageio.get_writer(path, mode="I", duration=1000.0 / fps, loop=0)
     elif ext == ".mp4":
-        writer = imageio.get_writer(path, fps=fps, codec="libx264", pixelformat="yuv420p",
-                                    quality=8, macro_block_size=1, ffmpeg_log_level="error")
+        writer = imageio.get_writer(
+            path,
+            fps=fps,
+            codec="libx264",
+            pixelformat="yuv420p",
+            quality=8,
+            macro_block_size=1,
+            ffmpeg_log_level="error",
+        )
     else:
         raise ConfigError(f"video file {path} must end in .mp4 or .gif")
     with writer:

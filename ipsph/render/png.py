@@ -1,4 +1,5 @@
 """PNG files of rendered frames."""
+
 from __future__ import annotations
 
 import os

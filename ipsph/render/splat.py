@@ -17,6 +17,7 @@ Particles are lit spheres of their physical radius r (the projected disc of radi
 the same footprint as VTK's point-gaussian impostors), shaded 0.42 + 0.58 max(n . L, 0) by a key
 light from the upper left, depth-tested per pixel against each other. No anti-aliasing.
 """
+
 from __future__ import annotations
 
 import struct
@@ -111,8 +112,9 @@ def splat(sx, sy, dist, rad_px, radius, light, zbuf, owner, shade):  # pragma: n
 
 
 @njit(cache=True, nogil=True)
-def composite(box, owner, shade, zbuf, colour, wall_depth, wall_rgb, wall_t, over_rgb, over_t,
-              out):  # pragma: no cover - jit
+def composite(
+    box, owner, shade, zbuf, colour, wall_depth, wall_rgb, wall_t, over_rgb, over_t, out
+):  # pragma: no cover - jit
     """Within `box` (y0, y1, x0, x1), put each particle pixel's lit colour into `out` (which holds
     the static frame) behind or in front of the walls by depth, under the 2D overlays; reset the
     pixel's `owner` and `zbuf` for the next frame. Layers are uint8: colours over black and
@@ -170,8 +172,12 @@ def encode_png(img: np.ndarray, level: int = 1) -> bytes:
     raw = np.empty((h, 3 * w + 1), dtype=np.uint8)
     _up_filter(img, raw)
     header = struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0)  # 8-bit truecolour, no interlace
-    return (b"\x89PNG\r\n\x1a\n" + _chunk(b"IHDR", header)
-            + _chunk(b"IDAT", zlib.compress(raw.data, level)) + _chunk(b"IEND", b""))
+    return (
+        b"\x89PNG\r\n\x1a\n"
+        + _chunk(b"IHDR", header)
+        + _chunk(b"IDAT", zlib.compress(raw.data, level))
+        + _chunk(b"IEND", b"")
+    )
 
 
 def warm_up() -> None:

@@ -1,4 +1,5 @@
 """The look of every render: view names, colours, the speed colour map and its range, layout."""
+
 from __future__ import annotations
 
 import math
@@ -11,20 +12,20 @@ from ..params import RENDER_VIEWS
 VIEWS = RENDER_VIEWS  # name -> (direction from the focal point to the camera, view-up), ipsph.params
 
 
-VIEW_ANGLE_DEG = 30.0                      # VTK's default vertical field of view
+VIEW_ANGLE_DEG = 30.0  # VTK's default vertical field of view
 
 
-BACKGROUND = ("#15181e", "#3b4350")        # bottom, top: dark neutral gradient, white fluid reads on it
+BACKGROUND = ("#15181e", "#3b4350")  # bottom, top: dark neutral gradient, white fluid reads on it
 
 
 SURFACE_COLOUR = "#c9d3df"
 
 
 SURFACE_OPACITY = 0.18
-MOVING_OPACITY = 0.85   # moving walls and rigid bodies (solid; ipsph.io.bodies' surfaces)
+MOVING_OPACITY = 0.85  # moving walls and rigid bodies (solid; ipsph.io.bodies' surfaces)
 
 
-EDGE_OPACITY = 0.45                        # the walls' outline and creases
+EDGE_OPACITY = 0.45  # the walls' outline and creases
 
 
 SPEED_COLOURS = ("#08183a", "#1f56b4", "#6fb1ee", "#ffffff")  # dark blue -> blue -> light blue -> white
@@ -33,10 +34,10 @@ SPEED_COLOURS = ("#08183a", "#1f56b4", "#6fb1ee", "#ffffff")  # dark blue -> blu
 SPEED_TITLE = "speed [m/s]"
 
 
-SCALAR_BAR_POSITION = (0.885, 0.18)        # lower left corner, normalised viewport
+SCALAR_BAR_POSITION = (0.885, 0.18)  # lower left corner, normalised viewport
 
 
-SCALAR_BAR_LENGTH = 0.62                   # of the viewport height
+SCALAR_BAR_LENGTH = 0.62  # of the viewport height
 
 
 TITLE_COLOUR = "#b8c0cc"
@@ -63,8 +64,9 @@ def speed_colormap():
     return LinearSegmentedColormap.from_list("ipsph_speed", SPEED_COLOURS, N=256)
 
 
-def default_speed_range(initial_speed: float, gravity: float | tuple[float, float, float],
-                        fluid_top: float, domain_bottom: float) -> tuple[float, float]:
+def default_speed_range(
+    initial_speed: float, gravity: float | tuple[float, float, float], fluid_top: float, domain_bottom: float
+) -> tuple[float, float]:
     """A-priori colour range (0, v_max) for renders during a run.
 
     v_max = sqrt(|v0|^2 + 2 |g| (fluid top - domain bottom)): the speed of a particle released from
@@ -79,7 +81,7 @@ def default_speed_range(initial_speed: float, gravity: float | tuple[float, floa
 
 def _rgb(hex_colour: str) -> tuple[float, float, float]:
     h = hex_colour.lstrip("#")
-    return tuple(int(h[i:i + 2], 16) / 255.0 for i in (0, 2, 4))
+    return tuple(int(h[i : i + 2], 16) / 255.0 for i in (0, 2, 4))
 
 
 def speed_lut_rgb() -> np.ndarray:

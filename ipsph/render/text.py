@@ -1,4 +1,5 @@
 """Text in renders: the font, the speed scalar bar, and labels drawn into a finished image."""
+
 from __future__ import annotations
 
 import functools
@@ -81,7 +82,7 @@ def _draw_text(img: np.ndarray, text: str, prop, position: tuple[int, int]) -> N
     h, w = img.shape[:2]
     x0, top = position[0], h - position[1] - ny  # rows of the text image, top down
     ys, xs = slice(max(top, 0), min(top + ny, h)), slice(max(x0, 0), min(x0 + nx, w))
-    patch = rgba[ys.start - top:ys.stop - top, xs.start - x0:xs.stop - x0]
+    patch = rgba[ys.start - top : ys.stop - top, xs.start - x0 : xs.stop - x0]
     a = patch[..., 3:4] / 255.0
     dst = img[ys, xs].astype(np.float32)
     img[ys, xs] = np.clip(patch[..., :3] * a + dst * (1.0 - a) + 0.5, 0, 255).astype(np.uint8)

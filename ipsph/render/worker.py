@@ -7,6 +7,7 @@ slow renderer holds back the solver instead of filling memory. A crash of the GL
 child (llvmpipe, EGL) costs the renders, never the simulation: the parent reports it in one
 line and carries on without them.
 """
+
 from __future__ import annotations
 
 import multiprocessing as mp
@@ -21,22 +22,24 @@ from pathlib import Path
 import numpy as np
 
 QUEUE_BYTES = 256 * 2**20  # frames in flight (24 B per particle) before submit() waits: the solver
-QUEUE_FRAMES = (2, 256)    # runs ahead while the renderer starts or the machine is busy
+QUEUE_FRAMES = (2, 256)  # runs ahead while the renderer starts or the machine is busy
 NICENESS = 19  # lowest: renders use the cycles the solver leaves idle. At nice 5-10 the worker
-               # preempted solver threads mid parallel loop and the other thread spun at the barrier
-               # (default scene: x1.26 wall at nice 10, x1.08 at nice 19). On a machine busy with
-               # other jobs the renders fall behind; the solver runs ahead (QUEUE_BYTES) and the
-               # last frames render at normal priority where the OS permits raising it (`close`).
-DRAIN_NOTICE_S = 2.0       # say what the run is waiting for when the last frames take longer
+# preempted solver threads mid parallel loop and the other thread spun at the barrier
+# (default scene: x1.26 wall at nice 10, x1.08 at nice 19). On a machine busy with
+# other jobs the renders fall behind; the solver runs ahead (QUEUE_BYTES) and the
+# last frames render at normal priority where the OS permits raising it (`close`).
+DRAIN_NOTICE_S = 2.0  # say what the run is waiting for when the last frames take longer
 
 
 def _exit_with_parent(parent_pid: int, every_s: float = 1.0) -> None:
     """The worker ignores SIGINT (the run decides), so it must not outlive a run that died without
     stopping it (SIGKILL, a crash): a daemon thread exits the process once the parent is gone."""
+
     def watch():
         while os.getppid() == parent_pid:
             _time.sleep(every_s)
         os._exit(0)
+
     threading.Thread(target=watch, name="ipsph-render-watchdog", daemon=True).start()
 
 
@@ -51,12 +54,14 @@ def _worker(jobs, results, parent_pid=None):
         pass
     # VTK logs a failing GL stack over many lines; the parent reports the failure in one
     from vtkmodules.vtkCommonCore import vtkLogger, vtkObject
+
     vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_OFF)
     vtkObject.GlobalWarningDisplayOff()
     from .frame import FrameRenderer
     from .output import read_surface
     from .png import save_png
     from .splat import warm_up
+
     warm_up()  # load the compiled kernels while the solver is still setting up
     try:
         setup = jobs.get()
@@ -64,6 +69,7 @@ def _worker(jobs, results, parent_pid=None):
             return
         config, bounds, radius, speed_range, surface_file, title = setup
         surface = read_surface(surface_file) if surface_file is not None else None
+
         def write(img, png):
             save_png(img, png)
             results.put(("ok", str(png)))
@@ -71,8 +77,10 @@ def _worker(jobs, results, parent_pid=None):
         # A writer thread encodes frame k while frame k+1 is drawn: both mostly release the GIL,
         # so the last frames, rendered after the solver has finished, use both cores (default
         # scene: about half the frames are still queued then).
-        with FrameRenderer(config, bounds, radius, speed_range, surface, title=title) as renderer, \
-                ThreadPoolExecutor(max_workers=1, thread_name_prefix="ipsph-png") as writer:
+        with (
+            FrameRenderer(config, bounds, radius, speed_range, surface, title=title) as renderer,
+            ThreadPoolExecutor(max_workers=1, thread_name_prefix="ipsph-png") as writer,
+        ):
             renderer.prepare()  # the first GL use: a missing GL stack crashes here, before any frame
             results.put(("ready", ""))
             encoding = None
@@ -108,8 +116,9 @@ class BackgroundRenderer:
         ctx = mp.get_context("spawn")  # a fresh interpreter: no forked numba/OpenMP threads
         self._jobs = ctx.Queue()  # bounded in bytes by submit()
         self._results = ctx.Queue()
-        self._proc = ctx.Process(target=_worker, daemon=True, name="ipsph-render",
-                                 args=(self._jobs, self._results, os.getpid()))
+        self._proc = ctx.Process(
+            target=_worker, daemon=True, name="ipsph-render", args=(self._jobs, self._results, os.getpid())
+        )
         # Ctrl-C in a terminal signals the whole process group. The parent decides what the worker
         # does then (finish the frames in flight, or terminate() it), so the worker starts with
         # SIGINT ignored: an interpreter that starts so installs no KeyboardInterrupt handler, and
@@ -123,13 +132,21 @@ class BackgroundRenderer:
                 signal.signal(signal.SIGINT, previous)
         self.rendered = 0
         self.submitted = 0
-        self.ready = False       # the worker has its GL context and static layers
+        self.ready = False  # the worker has its GL context and static layers
         self.error: str | None = None
 
     def configure(self, config, bounds, radius, speed_range, surface_file=None, title=None) -> None:
         """The series' render settings (once, before the first frame)."""
-        self._jobs.put((config, [float(b) for b in bounds], float(radius), tuple(float(v) for v in speed_range),
-                        None if surface_file is None else str(surface_file), title))
+        self._jobs.put(
+            (
+                config,
+                [float(b) for b in bounds],
+                float(radius),
+                tuple(float(v) for v in speed_range),
+                None if surface_file is None else str(surface_file),
+                title,
+            )
+        )
 
     def _drain(self) -> None:
         while True:
@@ -152,6 +169,7 @@ class BackgroundRenderer:
             return
         if code < 0:
             from .gl import GL_HINT
+
             try:
                 name = signal.Signals(-code).name
             except ValueError:
@@ -174,15 +192,21 @@ class BackgroundRenderer:
         self._drain()
         return self.submitted - self.rendered
 
-    def submit(self, points: np.ndarray, velocities: np.ndarray, png: Path, time: float,
-               moving: Path | None = None) -> bool:
+    def submit(
+        self, points: np.ndarray, velocities: np.ndarray, png: Path, time: float, moving: Path | None = None
+    ) -> bool:
         """Queue one frame (copied as float32); False once the worker has failed. Waits while the
         frames in flight fill QUEUE_BYTES, so a slow renderer holds the solver back, not memory.
         `moving`: the frame's moving-wall surfaces (OUT/bodies/*.vtp), drawn where they are."""
         if not self.alive:
             return False
-        job = (np.asarray(points, dtype=np.float32), np.asarray(velocities, dtype=np.float32), Path(png),
-               float(time), None if moving is None else str(moving))
+        job = (
+            np.asarray(points, dtype=np.float32),
+            np.asarray(velocities, dtype=np.float32),
+            Path(png),
+            float(time),
+            None if moving is None else str(moving),
+        )
         frame_bytes = max(job[0].nbytes + job[1].nbytes, 1)
         capacity = min(max(QUEUE_BYTES // frame_bytes, QUEUE_FRAMES[0]), QUEUE_FRAMES[1])
         while self.backlog >= capacity:

@@ -14,6 +14,7 @@ the same dict form first, so overrides and validation are shared). Paths: mesh f
 relative to the scene file's folder; the output folder resolves relative to the current working
 directory when the run starts (it is stored as written).
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -28,9 +29,22 @@ from .reference import key_help, reference_markdown
 from .serialise import scene_to_dict
 from .validate import _build_scene, _read_toml, lattice_counts, surface_values
 
-__all__ = ["Param", "PARAMS", "PARAM_BY_PATH", "OUTPUT_FIELDS", "RENDER_VIEWS", "load_scene", "scene_from_dict",
-           "apply_overrides", "scene_to_dict", "default_scene_path", "reference_markdown", "key_help",
-           "lattice_counts", "surface_config"]
+__all__ = [
+    "Param",
+    "PARAMS",
+    "PARAM_BY_PATH",
+    "OUTPUT_FIELDS",
+    "RENDER_VIEWS",
+    "load_scene",
+    "scene_from_dict",
+    "apply_overrides",
+    "scene_to_dict",
+    "default_scene_path",
+    "reference_markdown",
+    "key_help",
+    "lattice_counts",
+    "surface_config",
+]
 
 
 def default_scene_path() -> Path:
@@ -49,8 +63,10 @@ def load_scene(path: str | Path, overrides: Iterable[str] = ()) -> Scene:
     where = str(given)
     suffix = given.suffix.lower()
     if suffix not in (".toml", ".json"):
-        raise ConfigError(f"{where}: unknown scene file type {given.suffix or '(none)'!r}: "
-                          f"expected .toml (ipsph scene) or .json (SPlisHSPlasH scene)")
+        raise ConfigError(
+            f"{where}: unknown scene file type {given.suffix or '(none)'!r}: "
+            f"expected .toml (ipsph scene) or .json (SPlisHSPlasH scene)"
+        )
     resolved = given.expanduser().resolve()
     if not resolved.is_file():
         raise ConfigError(f"scene file not found: {where} (resolved: {resolved})")
@@ -59,6 +75,7 @@ def load_scene(path: str | Path, overrides: Iterable[str] = ()) -> Scene:
         data = _read_toml(resolved, where)
     else:
         from .. import splishsplash
+
         data, warnings = splishsplash.scene_dict(resolved, where=where)
     data.setdefault("name", resolved.stem)
     data = apply_overrides(data, overrides)
@@ -66,8 +83,9 @@ def load_scene(path: str | Path, overrides: Iterable[str] = ()) -> Scene:
     return dataclasses.replace(scene, warnings=tuple(warnings)) if warnings else scene
 
 
-def scene_from_dict(data: dict, base_dir: Path | None = None, name: str | None = None, *,
-                    source: Path | None = None) -> Scene:
+def scene_from_dict(
+    data: dict, base_dir: Path | None = None, name: str | None = None, *, source: Path | None = None
+) -> Scene:
     """Validate a dict in the TOML layout and build the Scene.
 
     base_dir: folder that relative mesh paths resolve against (default: current directory).
@@ -75,8 +93,7 @@ def scene_from_dict(data: dict, base_dir: Path | None = None, name: str | None =
     (default: data["source"] if present).
     """
     where = str(source) if source is not None else "scene"
-    return _build_scene(data, Path(base_dir) if base_dir is not None else Path.cwd(), name,
-                        source, where)
+    return _build_scene(data, Path(base_dir) if base_dir is not None else Path.cwd(), name, source, where)
 
 
 def surface_config(stored: dict | None, overrides: Iterable[str] = (), where: str = "surface") -> SurfaceConfig:

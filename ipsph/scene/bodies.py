@@ -1,6 +1,7 @@
 """Validation of a [[boundary]]'s motion and rigid-body keys (model.MotionSpec, BoundarySpec's
 density / mass): the rules PARAMS' ranges cannot say. Every error is one line naming the key
 (exit 2), raised while the scene is read, before anything is sampled or allocated."""
+
 from __future__ import annotations
 
 from typing import Any
@@ -16,8 +17,11 @@ def convert_keyframes(ctx, value: Any, shown: str) -> tuple[Keyframe, ...]:
     """boundary.motion.keyframes: an array of {time, translate, rotate_axis, rotate_deg} tables,
     times strictly increasing."""
     if not isinstance(value, (list, tuple)) or not all(isinstance(k, dict) for k in value):
-        raise ctx.fail(shown, f"expected an array of tables {{time = t, translate = [x, y, z], "
-                       f"rotate_axis = [x, y, z], rotate_deg = a}}, got {_show(value)}")
+        raise ctx.fail(
+            shown,
+            f"expected an array of tables {{time = t, translate = [x, y, z], "
+            f"rotate_axis = [x, y, z], rotate_deg = a}}, got {_show(value)}",
+        )
     out = []
     for i, k in enumerate(value):
         where = f"{shown}[{i}]"
@@ -30,8 +34,11 @@ def convert_keyframes(ctx, value: Any, shown: str) -> tuple[Keyframe, ...]:
         if t < 0.0:
             raise ctx.fail(f"{where}.time", f"{_fmt(t)} s is negative")
         if out and not t > out[-1].time:
-            raise ctx.fail(f"{where}.time", f"{_fmt(t)} s is not after keyframe {i - 1}'s "
-                           f"{_fmt(out[-1].time)} s: keyframes must be in strictly increasing time order")
+            raise ctx.fail(
+                f"{where}.time",
+                f"{_fmt(t)} s is not after keyframe {i - 1}'s "
+                f"{_fmt(out[-1].time)} s: keyframes must be in strictly increasing time order",
+            )
         tr = _vec(ctx, k.get("translate", (0.0, 0.0, 0.0)), f"{where}.translate")
         ax = _vec(ctx, k.get("rotate_axis", (0.0, 1.0, 0.0)), f"{where}.rotate_axis")
         deg = _num(ctx, k.get("rotate_deg", 0.0), f"{where}.rotate_deg")
@@ -45,6 +52,7 @@ def convert_keyframes(ctx, value: Any, shown: str) -> tuple[Keyframe, ...]:
 
 def _num(ctx, v, shown) -> float:
     import math
+
     if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(float(v)):
         raise ctx.fail(shown, f"expected a finite number, got {_show(v)}")
     return float(v)
@@ -62,19 +70,40 @@ def boundary_extras(ctx, prefix: str, vals: dict, role: Role, shape: str, mesh) 
     g = lambda key: vals.get(f"boundary.{key}", PARAM_BY_PATH[f"boundary.{key}"].default)  # noqa
     given = {k.split(".", 2)[2] for k in vals if k.startswith("boundary.motion.")}
     mt = g("motion.type")
-    motion = MotionSpec(**{f: g(f"motion.{f}") for f in (
-        "type", "velocity", "angular_velocity", "pivot", "axis", "amplitude", "angle_amplitude",
-        "period", "phase_deg", "keyframes")})
+    motion = MotionSpec(
+        **{
+            f: g(f"motion.{f}")
+            for f in (
+                "type",
+                "velocity",
+                "angular_velocity",
+                "pivot",
+                "axis",
+                "amplitude",
+                "angle_amplitude",
+                "period",
+                "phase_deg",
+                "keyframes",
+            )
+        }
+    )
     mp = f"{prefix}.motion"
     if given and mt == "static" and given != {"type"}:
-        raise ctx.fail(f"{mp}.type", f"is static (the default) but {', '.join(sorted(given - {'type'}))} "
-                       f"given: set type = \"constant\", \"sinusoid\" or \"keyframes\"")
-    allowed = {"static": {"type"}, "constant": {"type", "velocity", "angular_velocity", "pivot"},
-               "sinusoid": {"type", "axis", "amplitude", "angle_amplitude", "period", "phase_deg", "pivot"},
-               "keyframes": {"type", "keyframes", "pivot"}}[mt]
+        raise ctx.fail(
+            f"{mp}.type",
+            f"is static (the default) but {', '.join(sorted(given - {'type'}))} "
+            f'given: set type = "constant", "sinusoid" or "keyframes"',
+        )
+    allowed = {
+        "static": {"type"},
+        "constant": {"type", "velocity", "angular_velocity", "pivot"},
+        "sinusoid": {"type", "axis", "amplitude", "angle_amplitude", "period", "phase_deg", "pivot"},
+        "keyframes": {"type", "keyframes", "pivot"},
+    }[mt]
     for key in sorted(given - allowed):
-        raise ctx.fail(f"{mp}.{key}", f"does not apply to motion type {mt!r} (it takes: "
-                       f"{', '.join(sorted(allowed - {'type'}))})")
+        raise ctx.fail(
+            f"{mp}.{key}", f"does not apply to motion type {mt!r} (it takes: {', '.join(sorted(allowed - {'type'}))})"
+        )
     if mt == "sinusoid":
         if motion.period is None:
             raise ctx.fail(f"{mp}.period", "a sinusoid needs a period > 0 (s)")
@@ -93,16 +122,30 @@ def boundary_extras(ctx, prefix: str, vals: dict, role: Role, shape: str, mesh) 
         if density is not None and mass is not None:
             raise ctx.fail(f"{prefix}.mass", "give density or mass, not both")
         if mt != "static":
-            raise ctx.fail(f"{mp}.type", f"{mt!r}: a dynamic body (density or mass given) moves as the "
-                           f"forces say; a prescribed motion is for kinematic walls")
+            raise ctx.fail(
+                f"{mp}.type",
+                f"{mt!r}: a dynamic body (density or mass given) moves as the "
+                f"forces say; a prescribed motion is for kinematic walls",
+            )
         if role != Role.OBSTACLE:
-            raise ctx.fail(f"{prefix}.role", "a dynamic body must be an obstacle (the fluid flows "
-                           "around it): set role = \"obstacle\"")
+            raise ctx.fail(
+                f"{prefix}.role",
+                'a dynamic body must be an obstacle (the fluid flows around it): set role = "obstacle"',
+            )
         if shape == "mesh":
             from ..meshes import check_closed, load_mesh
+
             open_edges = check_closed(load_mesh(mesh))
             if open_edges:
-                raise ctx.fail(f"{prefix}.mesh", f"a dynamic body needs a closed surface (its mass and "
-                               f"inertia are its volume's): {open_edges} open or unpaired edges in {mesh}")
-    return {"motion": motion, "density": density, "mass": mass, "velocity": g("velocity"),
-            "angular_velocity": g("angular_velocity")}
+                raise ctx.fail(
+                    f"{prefix}.mesh",
+                    f"a dynamic body needs a closed surface (its mass and "
+                    f"inertia are its volume's): {open_edges} open or unpaired edges in {mesh}",
+                )
+    return {
+        "motion": motion,
+        "density": density,
+        "mass": mass,
+        "velocity": g("velocity"),
+        "angular_velocity": g("angular_velocity"),
+    }

@@ -7,6 +7,7 @@ start_time; a nozzle holds at least one particle; both domain corners or none. E
 one line naming the key. Whether a nozzle lies inside a container needs the walls' geometry and
 is checked before allocation by `ipsph.emitters.check_placement` (preflight).
 """
+
 from __future__ import annotations
 
 import math
@@ -41,24 +42,31 @@ def emitter_entity(ctx, walk, tree: dict, i: int, entry: dict, r: float, end_tim
         if not any(axis):
             raise ctx.fail(f"{prefix}.height_axis", "must not be the zero vector")
         if abs(float(np.dot(_unit(axis), _unit(direction)))) > 1.0 - 1e-6:
-            raise ctx.fail(f"{prefix}.height_axis", f"{_fmt_vec(axis)} is parallel to direction "
-                           f"{_fmt_vec(direction)}; give an axis across the nozzle")
+            raise ctx.fail(
+                f"{prefix}.height_axis",
+                f"{_fmt_vec(axis)} is parallel to direction {_fmt_vec(direction)}; give an axis across the nozzle",
+            )
     d = spacing(r)
     if shape == "box":
         for key in ("width", "height"):
             if g(key) is None:
-                raise ctx.fail(f"{prefix}.{key}", f"missing: a box nozzle needs width and height [m]")
+                raise ctx.fail(f"{prefix}.{key}", "missing: a box nozzle needs width and height [m]")
             if math.floor(g(key) / d + 0.5) < 1:
-                raise ctx.fail(f"{prefix}.{key}", f"{_fmt(g(key))} m holds no particle at particle_radius "
-                               f"{_fmt(r)} m (round({key} / 2r) = 0); use at least 2r = {_fmt(d)} m")
+                raise ctx.fail(
+                    f"{prefix}.{key}",
+                    f"{_fmt(g(key))} m holds no particle at particle_radius "
+                    f"{_fmt(r)} m (round({key} / 2r) = 0); use at least 2r = {_fmt(d)} m",
+                )
         if "emitter.radius" in vals:
-            raise ctx.fail(f"{prefix}.radius", "applies to circle nozzles only (shape = \"circle\")")
+            raise ctx.fail(f"{prefix}.radius", 'applies to circle nozzles only (shape = "circle")')
     else:
         if g("radius") is None:
             raise ctx.fail(f"{prefix}.radius", "missing: a circle nozzle needs a radius [m]")
         if math.floor(2.0 * g("radius") / d + 0.5) < 1:
-            raise ctx.fail(f"{prefix}.radius", f"{_fmt(g('radius'))} m holds no particle at particle_radius "
-                           f"{_fmt(r)} m; use at least r = {_fmt(r)} m")
+            raise ctx.fail(
+                f"{prefix}.radius",
+                f"{_fmt(g('radius'))} m holds no particle at particle_radius {_fmt(r)} m; use at least r = {_fmt(r)} m",
+            )
         for key in ("width", "height"):
             if f"emitter.{key}" in vals:
                 raise ctx.fail(f"{prefix}.{key}", "applies to box nozzles only; a circle takes radius")
@@ -68,11 +76,23 @@ def emitter_entity(ctx, walk, tree: dict, i: int, entry: dict, r: float, end_tim
     if end is not None and end <= start:
         raise ctx.fail(f"{prefix}.end_time", f"{_fmt(end)} s is not after start_time = {_fmt(start)} s")
     if start >= end_time:
-        raise ctx.fail(f"{prefix}.start_time", f"{_fmt(start)} s is not before simulation.end_time = "
-                       f"{_fmt(end_time)} s: the emitter would emit nothing")
-    return EmitterSpec(name=name, position=vals["emitter.position"], shape=shape, direction=direction,
-                       height_axis=axis, width=g("width"), height=g("height"), radius=g("radius"),
-                       velocity=g("velocity"), start_time=start, end_time=end)
+        raise ctx.fail(
+            f"{prefix}.start_time",
+            f"{_fmt(start)} s is not before simulation.end_time = {_fmt(end_time)} s: the emitter would emit nothing",
+        )
+    return EmitterSpec(
+        name=name,
+        position=vals["emitter.position"],
+        shape=shape,
+        direction=direction,
+        height_axis=axis,
+        width=g("width"),
+        height=g("height"),
+        radius=g("radius"),
+        velocity=g("velocity"),
+        start_time=start,
+        end_time=end,
+    )
 
 
 def sink_entity(ctx, walk, tree: dict, i: int, entry: dict) -> SinkSpec:
@@ -93,14 +113,17 @@ def check_domain(ctx, domain: DomainConfig) -> None:
         missing = "domain.max" if domain.max is None else "domain.min"
         raise ctx.fail(missing, "missing: give both corners of the domain box, or neither")
     if domain.min is not None and not all(a < b for a, b in zip(domain.min, domain.max)):
-        raise ctx.fail("domain.min", f"{_fmt_vec(domain.min)} must be < domain.max "
-                       f"{_fmt_vec(domain.max)} on every axis")
+        raise ctx.fail(
+            "domain.min", f"{_fmt_vec(domain.min)} must be < domain.max {_fmt_vec(domain.max)} on every axis"
+        )
 
 
 def unique_names(ctx, kind: str, items) -> None:
     seen: dict[str, int] = {}
     for i, item in enumerate(items):
         if item.name in seen:
-            raise ctx.fail(f"{kind}[{i}].name", f"{item.name!r} is already the name of {kind}[{seen[item.name]}]; "
-                           f"names must be unique")
+            raise ctx.fail(
+                f"{kind}[{i}].name",
+                f"{item.name!r} is already the name of {kind}[{seen[item.name]}]; names must be unique",
+            )
         seen[item.name] = i

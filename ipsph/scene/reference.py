@@ -1,4 +1,5 @@
 """Generated documentation of the scene keys: docs/scene-reference.md and `ipsph run --help`."""
+
 from __future__ import annotations
 
 from ..params import AUTO, PARAMS, RENAMED, SECTION_DOCS, Param
@@ -16,9 +17,11 @@ def key_help() -> str:
         if key.split(".", 1)[0] in ENTITIES:
             head, rest = key.split(".", 1)
             key = f"{head}.<i>.{rest}"
-        lines.append(f"  {key:<42} {_type_name(p)}, default {_fmt_default(p)}"
-                     f"{' ' + p.unit if p.unit and _fmt_default(p) not in ('-', AUTO) else ''}"
-                     f"{'; ' + _allowed(p) if _allowed(p) else ''}: {p.doc}")
+        lines.append(
+            f"  {key:<42} {_type_name(p)}, default {_fmt_default(p)}"
+            f"{' ' + p.unit if p.unit and _fmt_default(p) not in ('-', AUTO) else ''}"
+            f"{'; ' + _allowed(p) if _allowed(p) else ''}: {p.doc}"
+        )
     return "\n".join(lines)
 
 
@@ -41,8 +44,7 @@ def reference_markdown() -> str:
         "(`fluid[1].velocity`, counting [[fluid]] tables from 0) and the allowed range; "
         "nothing is clamped. Integers are accepted where floats are expected; booleans are "
         "not numbers.",
-        "- `auto` (or leaving the key out) for an optional key means: computed at run time, "
-        "as the description says.",
+        "- `auto` (or leaving the key out) for an optional key means: computed at run time, as the description says.",
         "- Mesh paths are relative to the scene file's folder. The output folder is relative "
         "to the current working directory when the run starts.",
         "- Any key can be overridden from the command line: `--set simulation.end_time=1.5`, "
@@ -62,18 +64,28 @@ def reference_markdown() -> str:
         sections.setdefault(head, []).append(p)
     for head, params in sections.items():
         title = {"": "Top level", **{e: f"[[{e}]]" for e in ENTITIES}}.get(head, f"[{head}]")
-        out += [f"## {title}", "", SECTION_DOCS[head], "",
-                "| key | type | default | unit | allowed | description |",
-                "|---|---|---|---|---|---|"]
+        out += [
+            f"## {title}",
+            "",
+            SECTION_DOCS[head],
+            "",
+            "| key | type | default | unit | allowed | description |",
+            "|---|---|---|---|---|---|",
+        ]
         for p in params:
-            key = p.path[len(head) + 1:] if head else p.path
-            cells = (f"`{key}`", _type_name(p), _fmt_default(p), p.unit or "-",
-                     _allowed(p) or "-", p.doc)
+            key = p.path[len(head) + 1 :] if head else p.path
+            cells = (f"`{key}`", _type_name(p), _fmt_default(p), p.unit or "-", _allowed(p) or "-", p.doc)
             out.append("| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |")
         out.append("")
     if RENAMED:
-        out += ["## Renamed keys", "", "A scene that still uses an old key is refused, naming the new one.", "",
-                "| old key | new key |", "|---|---|"]
+        out += [
+            "## Renamed keys",
+            "",
+            "A scene that still uses an old key is refused, naming the new one.",
+            "",
+            "| old key | new key |",
+            "|---|---|",
+        ]
         out += [f"| `{old}` | `{new}` |" for old, new in RENAMED.items()]
         out.append("")
     out.append(IMPORT_NOTES.strip())

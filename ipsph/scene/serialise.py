@@ -1,4 +1,5 @@
 """Scene -> the JSON-serialisable dict in the TOML layout (run.json, checkpoints' fingerprints)."""
+
 from __future__ import annotations
 
 from enum import Enum
@@ -73,8 +74,10 @@ def _entity_to_dict(kind: str, e) -> dict:
         lo, hi = e.box_min, e.box_max
         if tf != Transform():
             if tf.rotate_deg != 0.0:
-                raise ValueError(f"{kind} {e.name!r}: a box with a rotation cannot be written "
-                                 f"in the scene format (boxes are axis-aligned)")
+                raise ValueError(
+                    f"{kind} {e.name!r}: a box with a rotation cannot be written "
+                    f"in the scene format (boxes are axis-aligned)"
+                )
             lo = tuple(s * c + t for s, c, t in zip(tf.scale, lo, tf.translate))
             hi = tuple(s * c + t for s, c, t in zip(tf.scale, hi, tf.translate))
         d["box"] = {"min": _plain(lo), "max": _plain(hi)}
@@ -99,16 +102,24 @@ def _motion_to_dict(b) -> dict:
     m = b.motion
     if m.type != "static":
         md = {"type": m.type}
-        keys = {"constant": ("velocity", "angular_velocity", "pivot"),
-                "sinusoid": ("axis", "amplitude", "angle_amplitude", "period", "phase_deg", "pivot"),
-                "keyframes": ("pivot",)}[m.type]
+        keys = {
+            "constant": ("velocity", "angular_velocity", "pivot"),
+            "sinusoid": ("axis", "amplitude", "angle_amplitude", "period", "phase_deg", "pivot"),
+            "keyframes": ("pivot",),
+        }[m.type]
         for k in keys:
             if getattr(m, k) is not None:
                 md[k] = _plain(getattr(m, k))
         if m.type == "keyframes":
-            md["keyframes"] = [{"time": k.time, "translate": _plain(k.translate),
-                                "rotate_axis": _plain(k.rotate_axis), "rotate_deg": k.rotate_deg}
-                               for k in m.keyframes]
+            md["keyframes"] = [
+                {
+                    "time": k.time,
+                    "translate": _plain(k.translate),
+                    "rotate_axis": _plain(k.rotate_axis),
+                    "rotate_deg": k.rotate_deg,
+                }
+                for k in m.keyframes
+            ]
         d["motion"] = md
     if b.dynamic:
         if b.density is not None:

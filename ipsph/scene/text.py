@@ -1,4 +1,5 @@
 """How scene values and parameters are written in messages and in the generated reference."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -39,9 +40,18 @@ def _show(v: Any) -> str:
 
 
 def _type_name(p: Param) -> str:
-    return {"float": "float", "int": "integer", "bool": "boolean", "str": "string",
-            "path": "path", "choice": "string", "vec3": "[x, y, z]", "range2": "[min, max]",
-            "fields": "list of strings", "keyframes": "array of tables"}[p.kind]
+    return {
+        "float": "float",
+        "int": "integer",
+        "bool": "boolean",
+        "str": "string",
+        "path": "path",
+        "choice": "string",
+        "vec3": "[x, y, z]",
+        "range2": "[min, max]",
+        "fields": "list of strings",
+        "keyframes": "array of tables",
+    }[p.kind]
 
 
 def _fmt_default(p: Param) -> str:

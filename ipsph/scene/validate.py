@@ -5,6 +5,7 @@ its new path; a wrong type or an out-of-range value is refused naming the full k
 (`fluid[1].velocity`) and the allowed range; nothing is clamped; every error is one line
 (`ConfigError`, exit code 2).
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -17,8 +18,20 @@ from pathlib import Path
 from typing import Any, Iterable
 
 from ..errors import ConfigError, read_text
-from ..model import (BoundarySpec, DomainConfig, FluidSpec, Method, OutputConfig, RenderConfig, Role, Scene,
-                     SolverConfig, SurfaceConfig, TimeStepConfig, Transform)
+from ..model import (
+    BoundarySpec,
+    DomainConfig,
+    FluidSpec,
+    Method,
+    OutputConfig,
+    RenderConfig,
+    Role,
+    Scene,
+    SolverConfig,
+    SurfaceConfig,
+    TimeStepConfig,
+    Transform,
+)
 from ..params import AUTO, PARAM_BY_PATH, PARAMS, RENAMED, Param, default, spacing
 from .text import _allowed, _fmt, _fmt_vec, _show, _tname
 
@@ -47,8 +60,7 @@ def renamed_error(path: str, where: str) -> None:
     """ConfigError naming the new key when `path` (dotted, or `fluid[0].x`) is a renamed one."""
     plain = re.sub(r"\[\d+\]|\.\d+(?=\.)", "", path)
     if plain in RENAMED:
-        raise ConfigError(f"{where}: {path} was renamed to {RENAMED[plain]}: write it as "
-                          f"{RENAMED[plain]}")
+        raise ConfigError(f"{where}: {path} was renamed to {RENAMED[plain]}: write it as {RENAMED[plain]}")
 
 
 def set_path(d: dict, path: str, value: Any) -> None:
@@ -61,8 +73,12 @@ def set_path(d: dict, path: str, value: Any) -> None:
 def _construct(cls, values: dict):
     """cls(**values), building nested dataclass fields (solver.divergence, ...) from sub-dicts."""
     hints = typing.get_type_hints(cls)
-    return cls(**{k: _construct(hints[k], v) if dataclasses.is_dataclass(hints[k]) and isinstance(v, dict)
-                  else v for k, v in values.items()})
+    return cls(
+        **{
+            k: _construct(hints[k], v) if dataclasses.is_dataclass(hints[k]) and isinstance(v, dict) else v
+            for k, v in values.items()
+        }
+    )
 
 
 def lattice_counts(box_min, box_max, particle_radius: float) -> tuple[int, int, int]:
@@ -81,11 +97,10 @@ def _read_toml(path: Path, where: str) -> dict:
         msg = " ".join(str(exc).split())
         m = re.search(r"\(at line (\d+), column (\d+)\)", msg)
         if m:
-            msg = msg[:m.start()].strip()
+            msg = msg[: m.start()].strip()
             if msg == "Invalid value":
-                msg += " (text values need double quotes, e.g. method = \"ipsph\")"
-            raise ConfigError(f"{where}:{m.group(1)}:{m.group(2)}: TOML syntax error: {msg}") \
-                from exc
+                msg += ' (text values need double quotes, e.g. method = "ipsph")'
+            raise ConfigError(f"{where}:{m.group(1)}:{m.group(2)}: TOML syntax error: {msg}") from exc
         raise ConfigError(f"{where}: TOML syntax error: {msg}") from exc
 
 
@@ -97,8 +112,7 @@ class _Ctx:
         return ConfigError(f"{self.where}: {key}: {msg}")
 
 
-def _build_scene(data: dict, base_dir: Path, name: str | None, source: Path | None,
-                 where: str) -> Scene:
+def _build_scene(data: dict, base_dir: Path, name: str | None, source: Path | None, where: str) -> Scene:
     ctx = _Ctx(where)
     if not isinstance(data, dict):
         raise ConfigError(f"{where}: a scene must be a table of keys, got {_tname(data)}")
@@ -120,7 +134,7 @@ def _build_scene(data: dict, base_dir: Path, name: str | None, source: Path | No
             _walk(ctx, value, node, key, values)
 
     kw: dict[str, Any] = {}
-    for ppath, v in values.items():   # nested by where each value lands in the model
+    for ppath, v in values.items():  # nested by where each value lands in the model
         set_path(kw, PARAM_BY_PATH[ppath].target, v)
     kw["name"] = name or kw.get("name") or "scene"
     if source is not None:
@@ -131,15 +145,24 @@ def _build_scene(data: dict, base_dir: Path, name: str | None, source: Path | No
         kw["method"] = Method(kw["method"])
     if "folder" in kw.get("output", {}):
         kw["output"]["folder"] = Path(kw["output"]["folder"]).expanduser()
-    sections = {k: _construct(t, kw.pop(k, {})) for k, t in
-                (("time_step", TimeStepConfig), ("solver", SolverConfig), ("output", OutputConfig),
-                 ("render", RenderConfig), ("surface", SurfaceConfig), ("domain", DomainConfig))}
+    sections = {
+        k: _construct(t, kw.pop(k, {}))
+        for k, t in (
+            ("time_step", TimeStepConfig),
+            ("solver", SolverConfig),
+            ("output", OutputConfig),
+            ("render", RenderConfig),
+            ("surface", SurfaceConfig),
+            ("domain", DomainConfig),
+        )
+    }
     r = kw.get("particle_radius", default("simulation.particle_radius"))
 
     fluids_raw = _entity_list(ctx, data, "fluid")
     if not fluids_raw and not _entity_list(ctx, data, "emitter"):
-        raise ConfigError(f"{where}: no [[fluid]] table: a scene needs at least one fluid body "
-                          f"(a box or a mesh) or an [[emitter]]")
+        raise ConfigError(
+            f"{where}: no [[fluid]] table: a scene needs at least one fluid body (a box or a mesh) or an [[emitter]]"
+        )
     fluids = tuple(_entity(ctx, "fluid", i, e, base_dir, r) for i, e in enumerate(fluids_raw))
     try:
         _check_sections(ctx, sections["time_step"], sections["solver"], sections["render"], r)
@@ -147,18 +170,24 @@ def _build_scene(data: dict, base_dir: Path, name: str | None, source: Path | No
         # A radius far too small also breaks the auto dt_max; its size is the error to report
         # (the runner checks the count again against --max-particles before sampling).
         from ..preflight import check_fluid_count
+
         check_fluid_count(fluids, r, None)
         raise
-    boundaries = tuple(_entity(ctx, "boundary", i, e, base_dir, r)
-                       for i, e in enumerate(_entity_list(ctx, data, "boundary")))
+    boundaries = tuple(
+        _entity(ctx, "boundary", i, e, base_dir, r) for i, e in enumerate(_entity_list(ctx, data, "boundary"))
+    )
     from . import flow
+
     for kind, items in (("fluid", fluids), ("boundary", boundaries)):
         flow.unique_names(ctx, kind, items)
     end_time = kw.get("end_time", default("simulation.end_time"))
-    emitters = tuple(flow.emitter_entity(ctx, _walk, _ENTITY_TREES["emitter"], i, e, r, end_time)
-                     for i, e in enumerate(_entity_list(ctx, data, "emitter")))
-    sinks = tuple(flow.sink_entity(ctx, _walk, _ENTITY_TREES["sink"], i, e)
-                  for i, e in enumerate(_entity_list(ctx, data, "sink")))
+    emitters = tuple(
+        flow.emitter_entity(ctx, _walk, _ENTITY_TREES["emitter"], i, e, r, end_time)
+        for i, e in enumerate(_entity_list(ctx, data, "emitter"))
+    )
+    sinks = tuple(
+        flow.sink_entity(ctx, _walk, _ENTITY_TREES["sink"], i, e) for i, e in enumerate(_entity_list(ctx, data, "sink"))
+    )
     flow.unique_names(ctx, "emitter", emitters)
     flow.unique_names(ctx, "sink", sinks)
     flow.check_domain(ctx, sections["domain"])
@@ -189,11 +218,9 @@ def _unknown(ctx: _Ctx, key: str, prefix: str, allowed: list[str]) -> ConfigErro
         # the right key in the wrong table: [simulation] cfl_factor -> time_step.cfl_factor
         elsewhere = [p.path for p in PARAMS if p.key == key and p.path != "source"]
         elsewhere = [re.sub(rf"^({'|'.join(ENTITIES)})\.", r"\1[i].", e) for e in elsewhere]
-        hint = ("; did you mean " + " or ".join(repr(e) for e in elsewhere) + "?"
-                if elsewhere else "")
+        hint = "; did you mean " + " or ".join(repr(e) for e in elsewhere) + "?" if elsewhere else ""
     where_ = f"[{prefix}]" if prefix else "the top level"
-    return ConfigError(f"{ctx.where}: unknown key {shown!r}{hint} (allowed in {where_}: "
-                       f"{', '.join(allowed)})")
+    return ConfigError(f"{ctx.where}: unknown key {shown!r}{hint} (allowed in {where_}: {', '.join(allowed)})")
 
 
 def _convert(ctx: _Ctx, p: Param, value: Any, shown: str) -> Any:
@@ -222,8 +249,7 @@ def _convert(ctx: _Ctx, p: Param, value: Any, shown: str) -> Any:
         if not isinstance(value, str) or value not in p.choices:
             close = difflib.get_close_matches(str(value), p.choices, n=1, cutoff=0.5)
             hint = f"; did you mean {close[0]!r}?" if close else ""
-            raise ctx.fail(shown, f"{_show(value)} is not one of "
-                           f"{', '.join(p.choices)}{hint}")
+            raise ctx.fail(shown, f"{_show(value)} is not one of {', '.join(p.choices)}{hint}")
         return value
     if kind == "vec3":
         if not isinstance(value, (list, tuple)) or len(value) != 3:
@@ -242,14 +268,14 @@ def _convert(ctx: _Ctx, p: Param, value: Any, shown: str) -> Any:
         return (lo, hi)
     if kind == "keyframes":
         from .bodies import convert_keyframes
+
         return convert_keyframes(ctx, value, shown)
     if kind == "fields":
         if not isinstance(value, (list, tuple)):
             raise ctx.fail(shown, f"expected a list of field names, got {_show(value)}")
         for i, f in enumerate(value):
             if not isinstance(f, str) or f not in p.choices:
-                raise ctx.fail(f"{shown}[{i}]", f"{_show(f)} is not one of "
-                               f"{', '.join(p.choices)}")
+                raise ctx.fail(f"{shown}[{i}]", f"{_show(f)} is not one of {', '.join(p.choices)}")
         dup = sorted({f for f in value if list(value).count(f) > 1})
         if dup:
             raise ctx.fail(shown, f"listed more than once: {', '.join(dup)}")
@@ -267,8 +293,9 @@ def _number(ctx: _Ctx, value: Any, shown: str, p: Param) -> float:
 
 
 def _check_range(ctx: _Ctx, p: Param, x: float, shown: str) -> None:
-    bad = ((p.lo is not None and (x < p.lo or (p.lo_open and x == p.lo)))
-           or (p.hi is not None and (x > p.hi or (p.hi_open and x == p.hi))))
+    bad = (p.lo is not None and (x < p.lo or (p.lo_open and x == p.lo))) or (
+        p.hi is not None and (x > p.hi or (p.hi_open and x == p.hi))
+    )
     if bad:
         unit = f" {p.unit}" if p.unit else ""
         raise ctx.fail(shown, f"{_fmt(x)}{unit} is out of range: allowed {_allowed(p)}")
@@ -280,18 +307,21 @@ def _get(obj: Any, target: str) -> Any:
     return obj
 
 
-def _check_sections(ctx: _Ctx, ts: TimeStepConfig, sv: SolverConfig, rd: RenderConfig,
-                    r: float) -> None:
+def _check_sections(ctx: _Ctx, ts: TimeStepConfig, sv: SolverConfig, rd: RenderConfig, r: float) -> None:
     sv_root = Scene(name="", solver=sv)  # min <= max pairs, by their model targets
     dt_max = ts.resolved_dt_max(r)
     if ts.dt_min > dt_max:
-        src = "time_step.dt_max" if ts.dt_max is not None else \
-            f"time_step.dt_max (auto: 5 ms * r / 0.025 m = {_fmt(dt_max)} s)"
-        raise ctx.fail("time_step.dt_min", f"{_fmt(ts.dt_min)} s is larger than {src}; "
-                       f"lower dt_min or raise dt_max")
+        src = (
+            "time_step.dt_max"
+            if ts.dt_max is not None
+            else f"time_step.dt_max (auto: 5 ms * r / 0.025 m = {_fmt(dt_max)} s)"
+        )
+        raise ctx.fail("time_step.dt_min", f"{_fmt(ts.dt_min)} s is larger than {src}; lower dt_min or raise dt_max")
     if ts.dt_initial is not None and not ts.dt_min <= ts.dt_initial <= dt_max:
-        raise ctx.fail("time_step.dt_initial", f"{_fmt(ts.dt_initial)} s is outside "
-                       f"[dt_min, dt_max] = [{_fmt(ts.dt_min)}, {_fmt(dt_max)}] s")
+        raise ctx.fail(
+            "time_step.dt_initial",
+            f"{_fmt(ts.dt_initial)} s is outside [dt_min, dt_max] = [{_fmt(ts.dt_min)}, {_fmt(dt_max)}] s",
+        )
     for p in PARAMS:
         if p.at_most:
             lo, hi = _get(sv_root, p.target), _get(sv_root, PARAM_BY_PATH[p.at_most].target)
@@ -299,17 +329,14 @@ def _check_sections(ctx: _Ctx, ts: TimeStepConfig, sv: SolverConfig, rd: RenderC
                 raise ctx.fail(p.path, f"{lo} is larger than {p.at_most.rsplit('.', 1)[1]} = {hi}")
     if rd.view_up is not None and not any(rd.view_up):
         raise ctx.fail("render.view_up", "must not be the zero vector")
-    if (rd.camera_position is not None and rd.focal_point is not None
-            and rd.camera_position == rd.focal_point):
-        raise ctx.fail("render.camera_position", "equals render.focal_point; the camera needs "
-                       "a direction to look in")
+    if rd.camera_position is not None and rd.focal_point is not None and rd.camera_position == rd.focal_point:
+        raise ctx.fail("render.camera_position", "equals render.focal_point; the camera needs a direction to look in")
 
 
 def _entity_list(ctx: _Ctx, data: dict, kind: str) -> list:
     raw = data.get(kind, [])
     if isinstance(raw, dict):
-        raise ctx.fail(kind, f"expected an array of tables: write [[{kind}]] (double "
-                       f"brackets), not [{kind}]")
+        raise ctx.fail(kind, f"expected an array of tables: write [[{kind}]] (double brackets), not [{kind}]")
     if not isinstance(raw, list) or not all(isinstance(e, dict) for e in raw):
         raise ctx.fail(kind, f"expected an array of tables ([[{kind}]]), got {_show(raw)}")
     return raw
@@ -323,8 +350,11 @@ def _entity(ctx: _Ctx, kind: str, i: int, entry: dict, base_dir: Path, r: float)
     name = vals.get(f"{kind}.name") or f"{kind}{i}"
     has_box, has_mesh = "box" in entry, "mesh" in entry
     if has_box == has_mesh:
-        raise ctx.fail(prefix, "give exactly one shape: box = {min = [x, y, z], max = "
-                       "[x, y, z]} or mesh = \"file.obj\"" + (", not both" if has_box else ""))
+        raise ctx.fail(
+            prefix,
+            "give exactly one shape: box = {min = [x, y, z], max = "
+            '[x, y, z]} or mesh = "file.obj"' + (", not both" if has_box else ""),
+        )
     t, s = g("translate"), g("scale")
     axis, deg = g("rotate_axis"), g("rotate_deg")
     if not any(axis):
@@ -336,35 +366,48 @@ def _entity(ctx: _Ctx, kind: str, i: int, entry: dict, base_dir: Path, r: float)
         extra["role"] = Role(g("role"))
         if has_mesh:
             mesh_given = _resolve_mesh(ctx, f"{prefix}.mesh", vals[f"{kind}.mesh"], base_dir)
-        from .bodies import boundary_extras   # motion, rigid bodies
-        extra.update(boundary_extras(ctx, prefix, vals, extra["role"], "mesh" if has_mesh else "box",
-                                     mesh_given if has_mesh else None))
+        from .bodies import boundary_extras  # motion, rigid bodies
+
+        extra.update(
+            boundary_extras(
+                ctx, prefix, vals, extra["role"], "mesh" if has_mesh else "box", mesh_given if has_mesh else None
+            )
+        )
     if has_box:
         for end in ("min", "max"):
             if f"{kind}.box.{end}" not in vals:
                 raise ctx.fail(f"{prefix}.box", f"missing {end} = [x, y, z]")
         if deg != 0.0:
-            raise ctx.fail(f"{prefix}.rotate_deg", f"{_fmt(deg)}: boxes are axis-aligned and "
-                           f"cannot be rotated; use a mesh (e.g. a box .obj) to rotate")
+            raise ctx.fail(
+                f"{prefix}.rotate_deg",
+                f"{_fmt(deg)}: boxes are axis-aligned and cannot be rotated; use a mesh (e.g. a box .obj) to rotate",
+            )
         if kind == "fluid" and f"{kind}.allow_open_mesh" in vals:
             raise ctx.fail(f"{prefix}.allow_open_mesh", "applies to mesh fluids only")
         lo_given, hi_given = vals[f"{kind}.box.min"], vals[f"{kind}.box.max"]
         lo = tuple(si * c + ti for si, c, ti in zip(s, lo_given, t))
         hi = tuple(si * c + ti for si, c, ti in zip(s, hi_given, t))
-        note = "" if (t, s) == (_Z3, (1.0, 1.0, 1.0)) else \
-            f" (after scale and translate: min {_fmt_vec(lo)}, max {_fmt_vec(hi)})"
+        note = (
+            ""
+            if (t, s) == (_Z3, (1.0, 1.0, 1.0))
+            else f" (after scale and translate: min {_fmt_vec(lo)}, max {_fmt_vec(hi)})"
+        )
         for a in range(3):
             if not lo[a] < hi[a]:
-                raise ctx.fail(f"{prefix}.box", f"min {_fmt_vec(lo_given)} must be < max "
-                               f"{_fmt_vec(hi_given)} on every axis{note}")
+                raise ctx.fail(
+                    f"{prefix}.box", f"min {_fmt_vec(lo_given)} must be < max {_fmt_vec(hi_given)} on every axis{note}"
+                )
         if kind == "fluid":
             n = lattice_counts(lo, hi, r)
             if min(n) < 1:
                 a = n.index(min(n))
-                raise ctx.fail(f"{prefix}.box", f"extent {_fmt(hi[a] - lo[a])} m along "
-                               f"{'xyz'[a]} holds no particle at particle_radius {_fmt(r)} m "
-                               f"(round(extent / 2r) - 1 = {n[a]}); need an extent of at "
-                               f"least 3r = {_fmt(3 * r)} m")
+                raise ctx.fail(
+                    f"{prefix}.box",
+                    f"extent {_fmt(hi[a] - lo[a])} m along "
+                    f"{'xyz'[a]} holds no particle at particle_radius {_fmt(r)} m "
+                    f"(round(extent / 2r) - 1 = {n[a]}); need an extent of at "
+                    f"least 3r = {_fmt(3 * r)} m",
+                )
         cls = FluidSpec if kind == "fluid" else BoundarySpec
         return cls(name=name, shape="box", box_min=lo, box_max=hi, **extra)
     given = vals[f"{kind}.mesh"]
@@ -381,8 +424,11 @@ def _resolve_mesh(ctx: _Ctx, key: str, given: str, base_dir: Path) -> Path:
     resolved = (p if p.is_absolute() else base_dir / p).resolve()
     if not resolved.is_file():
         what = "is a folder, not a mesh file" if resolved.is_dir() else "mesh file not found"
-        raise ctx.fail(key, f"{what}: {given!r} (resolved: {resolved}; relative paths are "
-                       f"relative to the scene file's folder {base_dir})")
+        raise ctx.fail(
+            key,
+            f"{what}: {given!r} (resolved: {resolved}; relative paths are "
+            f"relative to the scene file's folder {base_dir})",
+        )
     return resolved
 
 

@@ -14,6 +14,7 @@ and `SimulatorBase::createFluidBlocks` then fills round((max' - min') / 2r) - 1 
 axis from min' + 2r. We store min'/max' with an identity transform, so the sampler only does the
 lattice (DamBreakModel: 19 x 19 x 19 = 6,859 particles).
 """
+
 from __future__ import annotations
 
 from .importer import DEFAULT_END_TIME, scene_dict

@@ -9,14 +9,25 @@ width axis; `velocity` is the speed along it; emitStartTime / emitEndTime bound 
 recycles the particles that leave that box: ipsph removes them ([domain]) and emits fresh ones
 with new ids. `maxEmitterParticles` is not needed (ipsph plans the capacity from the rates).
 """
+
 from __future__ import annotations
 
 import math
 
 import numpy as np
 
-_KEYS = ("width", "height", "translation", "rotationAxis", "rotationAngle", "velocity", "emitStartTime",
-         "emitEndTime", "type", "id")
+_KEYS = (
+    "width",
+    "height",
+    "translation",
+    "rotationAxis",
+    "rotationAngle",
+    "velocity",
+    "emitStartTime",
+    "emitEndTime",
+    "type",
+    "id",
+)
 MATERIAL_KEYS = ("maxEmitterParticles", "emitterReuseParticles", "emitterBoxMin", "emitterBoxMax")
 _REAL_MAX = 1e30  # emitEndTime at or above this: SPlisHSPlasH's "never" (REAL_MAX)
 
@@ -44,13 +55,18 @@ def emitter(imp, i: int, e: dict, radius: float) -> dict:
     for key, n in (("width", width), ("height", height)):
         if n < 1 and (key == "width" or kind == 0):
             raise imp.fail(f"{label}.{key}", f"{n}: an emitter needs at least 1 particle across")
-    rot = _rotation(imp.vec3(e.get("rotationAxis", [0, 0, 1]), f"{label}.rotationAxis"),
-                    imp.num(e.get("rotationAngle", 0.0), f"{label}.rotationAngle"))
-    entry = {"name": f"emitter{i}", "shape": "box" if kind == 0 else "circle",
-             "position": imp.vec3(e.get("translation", [0, 0, 0]), f"{label}.translation"),
-             "direction": [float(c) for c in rot[:, 0]],
-             "velocity": imp.num(e.get("velocity", 1.0), f"{label}.velocity"),
-             "start_time": imp.num(e.get("emitStartTime", 0.0), f"{label}.emitStartTime")}
+    rot = _rotation(
+        imp.vec3(e.get("rotationAxis", [0, 0, 1]), f"{label}.rotationAxis"),
+        imp.num(e.get("rotationAngle", 0.0), f"{label}.rotationAngle"),
+    )
+    entry = {
+        "name": f"emitter{i}",
+        "shape": "box" if kind == 0 else "circle",
+        "position": imp.vec3(e.get("translation", [0, 0, 0]), f"{label}.translation"),
+        "direction": [float(c) for c in rot[:, 0]],
+        "velocity": imp.num(e.get("velocity", 1.0), f"{label}.velocity"),
+        "start_time": imp.num(e.get("emitStartTime", 0.0), f"{label}.emitStartTime"),
+    }
     if kind == 0:
         entry.update(width=width * d, height=height * d, height_axis=[float(c) for c in rot[:, 1]])
     else:
@@ -68,8 +84,7 @@ def emitter(imp, i: int, e: dict, radius: float) -> dict:
 def domain(imp, materials: list[tuple[str, dict]]) -> dict | None:
     """[domain] from a material's emitterReuseParticles + emitterBoxMin/Max (None without)."""
     for label, mat in materials:
-        if "emitterReuseParticles" in mat and imp.bool_(mat["emitterReuseParticles"],
-                                                        f"{label}.emitterReuseParticles"):
+        if "emitterReuseParticles" in mat and imp.bool_(mat["emitterReuseParticles"], f"{label}.emitterReuseParticles"):
             lo = imp.vec3(mat.get("emitterBoxMin", [-1, -1, -1]), f"{label}.emitterBoxMin")
             hi = imp.vec3(mat.get("emitterBoxMax", [1, 1, 1]), f"{label}.emitterBoxMax")
             return {"min": lo, "max": hi}
