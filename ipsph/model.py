@@ -172,11 +172,20 @@ PFConfig = _section(
     "PFConfig", "solver.pf", "[solver.pf]: Projective Fluids (method.md 3); the stiffness is IPSPH's too."
 )
 IPSPHConfig = _section("IPSPHConfig", "solver.ipsph", "[solver.ipsph]: IPSPH's average-density loop (method.md 4).")
+ViscosityConfig = _section(
+    "ViscosityConfig", "solver.viscosity", "[solver.viscosity]: the implicit viscosity solve (method.md 10)."
+)
 SolverConfig = _section(
     "SolverConfig",
     "solver",
     "[solver] and its per-method sub-tables.",
-    {"divergence": DivergenceConfig, "dfsph": DFSPHConfig, "pf": PFConfig, "ipsph": IPSPHConfig},
+    {
+        "divergence": DivergenceConfig,
+        "dfsph": DFSPHConfig,
+        "pf": PFConfig,
+        "ipsph": IPSPHConfig,
+        "viscosity": ViscosityConfig,
+    },
 )
 OutputConfig = _section("OutputConfig", "output", "[output]: what is written, where, how often.")
 RenderConfig = _section("RenderConfig", "render", "[render]: the offscreen renders.")
@@ -202,7 +211,9 @@ class Scene:
     gravity: Vec3 = D("simulation.gravity")
     end_time: float = D("simulation.end_time")
     viscosity: float = D("simulation.viscosity")
-    standard_viscosity: float = D("simulation.standard_viscosity")
+    viscosity_model: str = D("simulation.viscosity_model")
+    kinematic_viscosity_m2s: float = D("simulation.kinematic_viscosity_m2s")
+    viscosity_walls: str = D("simulation.viscosity_walls")
     fit_wall_volumes: bool = D("simulation.fit_wall_volumes")
     settle: str = D("simulation.settle")
     time_step: TimeStepConfig = TimeStepConfig()

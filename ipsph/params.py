@@ -46,10 +46,13 @@ PHASES = {
     "densities": ("rho", "density pass at the end-of-step positions (DFSPH)"),
     "solvePDConstraints": ("PD", "Projective Fluids local/global passes (PF, IPSPH)"),
     "xsph": ("xsph", "viscosity pass (XSPH, Standard viscosity)"),
+    "viscositySolve": ("visc", "implicit viscosity solve (viscosity_model implicit)"),
     "divergenceSolve": ("div", "divergence solve (DFSPH, IPSPH)"),
     "densitySolve": ("dens", "DFSPH density solve"),
 }
 
+VISCOSITY_MODELS = ("xsph", "standard", "implicit")  # simulation.viscosity_model (method.md section 10)
+VISCOSITY_WALLS = ("no-slip", "free-slip")  # simulation.viscosity_walls: the implicit model's wall friction
 SETTLE_MODES = ("auto", "on", "off")  # simulation.settle: the pre-pass before t = 0
 BOUNDARY_ROLES = ("container", "obstacle")  # boundary.role: fluid inside the surface, or around it
 MOTION_TYPES = ("static", "constant", "sinusoid", "keyframes")  # boundary.motion.type (ipsph/motion.py)
@@ -254,23 +257,47 @@ PARAMS: tuple[Param, ...] = (
         "float",
         0.01,
         "",
-        "XSPH viscosity coefficient zeta (0.01-0.03 typical; 0 disables it).",
+        "XSPH smoothing coefficient zeta (dimensionless, not a viscosity: 0.01-0.03 typical; 0 "
+        "disables it). It applies with every viscosity_model; a physical viscosity is "
+        "kinematic_viscosity_m2s.",
         "viscosity",
         lo=0.0,
         hi=1.0,
     ),
     _P(
-        "simulation.standard_viscosity",
+        "simulation.viscosity_model",
+        "choice",
+        "xsph",
+        "",
+        "How the kinematic viscosity nu acts (docs/method.md section 10): xsph (none: only the "
+        "XSPH filter), standard (SPlisHSPlasH's explicit Standard model; it limits the step to "
+        "H^2 / (60 nu)) or implicit (a backward-Euler solve, Weiler et al. 2018's operator: the "
+        "CFL step at any nu; tolerance and cap in [solver.viscosity]).",
+        "viscosity_model",
+        choices=VISCOSITY_MODELS,
+    ),
+    _P(
+        "simulation.kinematic_viscosity_m2s",
         "float",
         0.0,
         "m^2/s",
-        "Kinematic viscosity nu of "
-        'SPlisHSPlasH\'s "Standard" viscosity (an explicit SPH viscous acceleration, '
-        "docs/method.md); 0 disables it. It also limits the step to H^2 / (60 nu). "
-        "SPlisHSPlasH scenes with viscosityMethod 1 set it.",
-        "standard_viscosity",
+        "Kinematic viscosity nu = mu / rho0 in m^2/s (water 1e-6, honey 5e-3, thick lava 1 and "
+        "more), used by viscosity_model standard or implicit (SPlisHSPlasH's Materials viscosity "
+        "is this nu).",
+        "kinematic_viscosity_m2s",
         lo=0.0,
-        hi=10.0,
+        hi=1e4,
+    ),
+    _P(
+        "simulation.viscosity_walls",
+        "choice",
+        "no-slip",
+        "",
+        "Wall friction of the implicit viscosity: no-slip (the fluid is dragged towards the wall "
+        "particles' velocities, moving walls included) or free-slip (walls take no part in the "
+        "viscous operator).",
+        "viscosity_walls",
+        choices=VISCOSITY_WALLS,
     ),
     _P(
         "simulation.fit_wall_volumes",
@@ -426,6 +453,19 @@ PARAMS: tuple[Param, ...] = (
         lo=0.0,
         hi=1.0,
     ),
+    # -- [solver.viscosity] ----------------------------------------------------------------------
+    _P(
+        "solver.viscosity.error_pct",
+        "float",
+        0.1,
+        "%",
+        "Implicit viscosity solve: stop when the residual's norm is below this fraction of the "
+        "right-hand side's (mass-weighted 2-norms; SPlisHSPlasH's Weiler 2018 maxError is 1 %).",
+        lo=0.0,
+        hi=100.0,
+        lo_open=True,
+    ),
+    *_limits("solver.viscosity", "iterations", 0, 100, "Implicit viscosity solve (conjugate gradients)"),
     # -- [output] -------------------------------------------------------------------------------
     _P(
         "output.folder",
@@ -919,6 +959,7 @@ SECTION_DOCS = {
     "solver.dfsph": "DFSPH's density solve (method.md section 2).",
     "solver.pf": "Projective Fluids (method.md section 3); the stiffness also applies to IPSPH.",
     "solver.ipsph": "IPSPH's average-density loop around the PF passes (method.md section 4).",
+    "solver.viscosity": "The implicit viscosity solve (simulation.viscosity_model = implicit; method.md section 10).",
     "output": "What is written, where and how often.",
     "render": "Offscreen renders of the written frames.",
     "surface": "Surface meshes of the fluid (output.surface, `ipsph surface`), reconstructed by "
@@ -942,6 +983,11 @@ RENAMED = {
     "solver.dfsph.divergence_min_iterations": "solver.divergence.min_iterations",
     "solver.dfsph.divergence_max_iterations": "solver.divergence.max_iterations",
     "solver.dfsph.divergence_solve": "solver.divergence.enabled",
+}
+
+# keys that were replaced by more than one key: old path -> what to write instead (a one-line error)
+REPLACED = {
+    "simulation.standard_viscosity": 'simulation.kinematic_viscosity_m2s = <nu> with simulation.viscosity_model = "standard"',
 }
 
 

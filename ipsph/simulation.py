@@ -296,7 +296,7 @@ class Simulation:
 
     def _viscous_dt(self) -> float:
         """H^2 / (VISCOUS_STEP nu): the explicit Standard viscosity's step limit (inf without it)."""
-        nu = self.scene.standard_viscosity
+        nu = self.scene.kinematic_viscosity_m2s if self.scene.viscosity_model == "standard" else 0.0
         return self.support * self.support / (VISCOUS_STEP * nu) if nu > 0.0 else math.inf
 
     def step(self, dt: float | None = None) -> StepStats:

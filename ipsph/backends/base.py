@@ -141,6 +141,15 @@ class Backend:
     def pf_global(self, x, s, mf, dens, nl, h, rho0, a, x_out, lam_sum) -> None:
         raise NotImplementedError
 
+    def viscous_setup(self, x, v, mf, dens, walls, nl, h, rho0, nu_dt, wall_factor, full, b, diag, wmat) -> None:
+        raise NotImplementedError  # the implicit viscosity's b, Jacobi diagonal, wall blocks (bodies.viscous_setup_at)
+
+    def viscous_apply(self, x, p, mf, dens, nl, h, nu_dt, wmat, out, pdot) -> None:
+        raise NotImplementedError  # out = A p, pdot_i = V_i p_i . out_i (bodies.viscous_apply_at)
+
+    def cg_precondition(self, r, diag, rho, mf, z, rz, rr) -> None:
+        raise NotImplementedError  # z = r / diag, rz_i = V_i r_i . z_i, rr_i = V_i |r_i|^2 (element-wise)
+
     def wall_rate(self, x, walls, nl, h, dens) -> None:
         raise NotImplementedError  # dens.gvb (walls.v: moving walls)
 

@@ -32,6 +32,7 @@ DX, DY, DZ, C0, C1, C2, C3, C4, C5 = 0, 1, 2, 3, 4, 5, 6, 7, 8
 
 # rows of scratch each body needs per neighbour slot (the launcher allocates them)
 DENSITY_ROWS, RATE_ROWS, STIFFNESS_ROWS, VISCOSITY_ROWS, PF_GLOBAL_ROWS, WALL_RATE_ROWS = 6, 7, 4, 9, 4, 4
+VISCOUS_SETUP_ROWS, VISCOUS_APPLY_ROWS = 7, 7  # the implicit viscosity's passes (method.md section 10)
 
 
 # -- gathers -------------------------------------------------------------------------------------
@@ -375,3 +376,124 @@ def wall_rate_at(i, x, xb, mb, vb, nb, cb, h, buf, gvb):
         d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
         s += buf[C0, k] * grad_w_factor(math.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
     gvb[i] = s
+
+
+# -- the implicit viscosity (method.md section 10) -------------------------------------------------
+@njit(inline="always", fastmath=FAST)
+def viscous_setup_at(
+    i, x, v, mf, rho, xb, mb, vb, nf, cf, nb, cb, h, rho0, nu_dt, wall_factor, full, buf, b, diag, wmat
+):
+    """The constant parts of the implicit viscosity system A v = b of particle i [WKBB18]:
+
+        (A v)_i = v_i + nu dt sum_j V_j k_ij (x_ij . v_ij) x_ij + Wm_i v_i
+        b_i     = v_i + s_w nu dt sum_b V_b k_ib (x_ib . v_b) x_ib            (v_b: the wall's velocity)
+        Wm_i    = s_w nu dt sum_b V_b k_ib x_ib x_ib^T          (the walls' block: 6 entries, xx yy zz xy xz yz)
+        diag_i  = the diagonal of A's 3x3 block of i             (the Jacobi preconditioner)
+
+    k_ij = -10 g(r_ij) / (r_ij^2 + 0.01 H^2) >= 0 (grad W_ij = g(r_ij) x_ij: SPlisHSPlasH's Standard
+    operator, 2 (d + 2) = 10 in 3D), V_j = mf / rho_j, V_b = m_b / rho0 = Psi_b. `v` is the
+    velocity before the solve (the right-hand side).
+
+    The walls stand in for the part of i's neighbourhood the fluid does not fill [choice, method.md
+    section 10]: s_w = wall_factor (1 no-slip, 0 free-slip) times the missing share of the full
+    neighbourhood's trace, max(full - sum_j V_j k_ij r_ij^2, 0) / sum_b V_b k_ib r_ib^2, with
+    full = sum over a complete lattice (`full`). Next to a flat box wall this is 1 to 1 %; next to
+    curved walls, where the lattice leaves gaps of 1-2 d, it restores the friction of a wall in contact."""
+    eps = 0.01 * h * h
+    n_f = _gather_xf(i, x, nf, cf, buf)
+    n_b = cb[i]
+    _gather_diff(i, x, xb, nb, n_b, buf, DX, n_f)
+    for k in range(n_f):
+        buf[C0, k] = mf / rho[nf[i, k]]
+        buf[C1, k] = 0.0
+        buf[C2, k] = 0.0
+        buf[C3, k] = 0.0
+    for k in range(n_b):
+        bj = nb[i, k]
+        buf[C0, n_f + k] = mb[bj] / rho0
+        buf[C1, n_f + k] = vb[bj, 0]
+        buf[C2, n_f + k] = vb[bj, 1]
+        buf[C3, n_f + k] = vb[bj, 2]
+    f0 = f1 = f2 = 0.0  # fluid: sum_j V_j k_ij x_ij,c^2
+    for k in range(n_f):
+        d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
+        r2 = d0 * d0 + d1 * d1 + d2 * d2
+        kv = -10.0 * buf[C0, k] * grad_w_factor(math.sqrt(r2), h) / (r2 + eps)
+        f0 += kv * d0 * d0
+        f1 += kv * d1 * d1
+        f2 += kv * d2 * d2
+    w00 = w11 = w22 = w01 = w02 = w12 = 0.0  # walls: sum_b V_b k_ib x_ib x_ib^T
+    q0 = q1 = q2 = 0.0  # walls: sum_b V_b k_ib (x_ib . v_b) x_ib
+    for k in range(n_f, n_f + n_b):
+        d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
+        r2 = d0 * d0 + d1 * d1 + d2 * d2
+        kv = -10.0 * buf[C0, k] * grad_w_factor(math.sqrt(r2), h) / (r2 + eps)
+        w00 += kv * d0 * d0
+        w11 += kv * d1 * d1
+        w22 += kv * d2 * d2
+        w01 += kv * d0 * d1
+        w02 += kv * d0 * d2
+        w12 += kv * d1 * d2
+        xv = kv * (d0 * buf[C1, k] + d1 * buf[C2, k] + d2 * buf[C3, k])
+        q0 += xv * d0
+        q1 += xv * d1
+        q2 += xv * d2
+    tw = w00 + w11 + w22
+    sw = 0.0
+    if tw > 0.0:
+        sw = wall_factor * nu_dt * max(full - (f0 + f1 + f2), 0.0) / tw
+    b[i, 0] = v[i, 0] + sw * q0
+    b[i, 1] = v[i, 1] + sw * q1
+    b[i, 2] = v[i, 2] + sw * q2
+    diag[i, 0] = 1.0 + nu_dt * f0 + sw * w00
+    diag[i, 1] = 1.0 + nu_dt * f1 + sw * w11
+    diag[i, 2] = 1.0 + nu_dt * f2 + sw * w22
+    wmat[i, 0] = sw * w00
+    wmat[i, 1] = sw * w11
+    wmat[i, 2] = sw * w22
+    wmat[i, 3] = sw * w01
+    wmat[i, 4] = sw * w02
+    wmat[i, 5] = sw * w12
+
+
+@njit(inline="always", fastmath=FAST)
+def viscous_apply_at(i, x, p, mf, rho, nf, cf, h, nu_dt, wmat, buf, out, pdot):
+    """out_i = (A p)_i = p_i + nu dt sum_j V_j k_ij (x_ij . p_ij) x_ij + Wm_i p_i   (viscous_setup_at)
+    and pdot_i = V_i p_i . out_i, the mass-weighted inner product's term (A is symmetric in it:
+    conjugate gradients on sum_i V_i a_i . b_i, method.md section 10)."""
+    eps = 0.01 * h * h
+    n_f = _gather_xf(i, x, nf, cf, buf)
+    _gather_diff(i, p, p, nf, n_f, buf, C1, 0)
+    for k in range(n_f):
+        buf[C0, k] = mf / rho[nf[i, k]]
+    s0 = s1 = s2 = 0.0
+    for k in range(n_f):
+        d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
+        r2 = d0 * d0 + d1 * d1 + d2 * d2
+        kv = -10.0 * buf[C0, k] * grad_w_factor(math.sqrt(r2), h) / (r2 + eps)
+        xp = kv * (d0 * buf[C1, k] + d1 * buf[C2, k] + d2 * buf[C3, k])
+        s0 += xp * d0
+        s1 += xp * d1
+        s2 += xp * d2
+    p0, p1, p2 = p[i, 0], p[i, 1], p[i, 2]
+    o0 = p0 + nu_dt * s0 + wmat[i, 0] * p0 + wmat[i, 3] * p1 + wmat[i, 4] * p2
+    o1 = p1 + nu_dt * s1 + wmat[i, 3] * p0 + wmat[i, 1] * p1 + wmat[i, 5] * p2
+    o2 = p2 + nu_dt * s2 + wmat[i, 4] * p0 + wmat[i, 5] * p1 + wmat[i, 2] * p2
+    out[i, 0] = o0
+    out[i, 1] = o1
+    out[i, 2] = o2
+    pdot[i] = mf / rho[i] * (p0 * o0 + p1 * o1 + p2 * o2)
+
+
+@njit(inline="always")
+def cg_precondition_at(i, r, diag, rho, mf, z, rz, rr):
+    """Jacobi: z_i = r_i / diag_i (per component); rz_i = V_i r_i . z_i, rr_i = V_i r_i . r_i."""
+    vi = mf / rho[i]
+    a = b = 0.0
+    for c in range(3):
+        zc = r[i, c] / diag[i, c]
+        z[i, c] = zc
+        a += r[i, c] * zc
+        b += r[i, c] * r[i, c]
+    rz[i] = vi * a
+    rr[i] = vi * b

@@ -145,6 +145,35 @@ class CPUBackend(Backend):
         )
         return pairs
 
+    def viscous_setup(self, x, v, mf, dens, walls, nl, h, rho0, nu_dt, wall_factor, full, b, diag, wmat):
+        P.viscous_setup(
+            x,
+            v,
+            mf,
+            dens.rho,
+            walls.x,
+            walls.m,
+            walls.v,
+            nl.fluid,
+            nl.fluid_count,
+            nl.boundary,
+            nl.boundary_count,
+            h,
+            rho0,
+            nu_dt,
+            wall_factor,
+            full,
+            b,
+            diag,
+            wmat,
+        )
+
+    def viscous_apply(self, x, p, mf, dens, nl, h, nu_dt, wmat, out, pdot):
+        P.viscous_apply(x, p, mf, dens.rho, nl.fluid, nl.fluid_count, h, nu_dt, wmat, out, pdot)
+
+    def cg_precondition(self, r, diag, rho, mf, z, rz, rr):
+        P.cg_precondition(r, diag, rho, mf, z, rz, rr)
+
     def wall_rate(self, x, walls, nl, h, dens):
         P.wall_rate(x, walls.x, walls.m, walls.v, nl.boundary, nl.boundary_count, h, dens.gvb)
 

@@ -26,13 +26,18 @@ from .bodies import (
     RATE_ROWS,
     STIFFNESS_ROWS,
     VISCOSITY_ROWS,
+    VISCOUS_APPLY_ROWS,
+    VISCOUS_SETUP_ROWS,
     WALL_RATE_ROWS,
+    cg_precondition_at,
     density_at,
     density_residual_at,
     divergence_residual_at,
     pf_global_at,
     stiffness_at,
     viscosity_at,
+    viscous_apply_at,
+    viscous_setup_at,
     wall_rate_at,
 )
 from ..kernels import w
@@ -230,6 +235,36 @@ def wall_rate(x, xb, mb, vb, nb, cb, h, gvb):
             wall_rate_at(i, x, xb, mb, vb, nb, cb, h, bufs[c], gvb)
 
 
+@njit(parallel=True, fastmath=FAST, cache=True)
+def viscous_setup(x, v, mf, rho, xb, mb, vb, nf, cf, nb, cb, h, rho0, nu_dt, wall_factor, full, b, diag, wmat):
+    """bodies.viscous_setup_at for every particle: the implicit viscosity's right-hand side,
+    Jacobi diagonal and wall blocks."""
+    bufs = _buffers(VISCOUS_SETUP_ROWS, nf, nb)
+    for c in prange(bufs.shape[0]):
+        lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
+        for i in range(lo, hi):
+            viscous_setup_at(
+                i, x, v, mf, rho, xb, mb, vb, nf, cf, nb, cb, h, rho0, nu_dt, wall_factor, full, bufs[c], b, diag, wmat
+            )
+
+
+@njit(parallel=True, fastmath=FAST, cache=True)
+def viscous_apply(x, p, mf, rho, nf, cf, h, nu_dt, wmat, out, pdot):
+    """bodies.viscous_apply_at for every particle: out = A p, pdot_i = V_i p_i . out_i."""
+    bufs = _fluid_buffers(VISCOUS_APPLY_ROWS, nf)
+    for c in prange(bufs.shape[0]):
+        lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
+        for i in range(lo, hi):
+            viscous_apply_at(i, x, p, mf, rho, nf, cf, h, nu_dt, wmat, bufs[c], out, pdot)
+
+
+@njit(cache=True)
+def cg_precondition(r, diag, rho, mf, z, rz, rr):
+    """bodies.cg_precondition_at for every particle (element-wise)."""
+    for i in range(r.shape[0]):
+        cg_precondition_at(i, r, diag, rho, mf, z, rz, rr)
+
+
 # -- serial reductions ------------------------------------------------------------------------------
 @njit(cache=True)
 def mean(a):
@@ -327,6 +362,9 @@ def _depend_on_inlined_sources() -> None:
         xsph,
         pf_global,
         wall_rate,
+        viscous_setup,
+        viscous_apply,
+        cg_precondition,
     ):
         cache_file = getattr(getattr(d, "_cache", None), "_cache_file", None)
         if cache_file is not None and hasattr(cache_file, "_source_stamp"):

@@ -304,6 +304,52 @@ class CUDABackend(Backend):
             self._passes(nl)["wall_rate"], x.shape[0], x, xb, mb, vb, nl.boundary, nl.boundary_count, h, dens.gvb
         )
 
+    def viscous_setup(self, x, v, mf, dens, walls, nl, h, rho0, nu_dt, wall_factor, full, b, diag, wmat):
+        xb, mb, vb = self._wall_arrays(walls)
+        self._launch(
+            self._passes(nl)["viscous_setup"],
+            x.shape[0],
+            x,
+            v,
+            mf,
+            dens.rho,
+            xb,
+            mb,
+            vb,
+            nl.fluid,
+            nl.fluid_count,
+            nl.boundary,
+            nl.boundary_count,
+            h,
+            rho0,
+            nu_dt,
+            wall_factor,
+            full,
+            b,
+            diag,
+            wmat,
+        )
+
+    def viscous_apply(self, x, p, mf, dens, nl, h, nu_dt, wmat, out, pdot):
+        self._launch(
+            self._passes(nl)["viscous_apply"],
+            x.shape[0],
+            x,
+            p,
+            mf,
+            dens.rho,
+            nl.fluid,
+            nl.fluid_count,
+            h,
+            nu_dt,
+            wmat,
+            out,
+            pdot,
+        )
+
+    def cg_precondition(self, r, diag, rho, mf, z, rz, rr):
+        self._launch(self.P.cg_precondition, r.shape[0], r, diag, rho, mf, z, rz, rr)
+
     def advance(self, x, v, dt, g, x_old):
         self._launch(self.P.advance, x.shape[0], x, v, dt, g, x_old)
 

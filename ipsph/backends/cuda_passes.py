@@ -29,7 +29,16 @@ import numpy as np
 from .. import kernels
 from . import bodies
 from ._cuda import SIMULATOR, cuda, device_function
-from .bodies import DENSITY_ROWS, PF_GLOBAL_ROWS, RATE_ROWS, STIFFNESS_ROWS, VISCOSITY_ROWS, WALL_RATE_ROWS
+from .bodies import (
+    DENSITY_ROWS,
+    PF_GLOBAL_ROWS,
+    RATE_ROWS,
+    STIFFNESS_ROWS,
+    VISCOSITY_ROWS,
+    VISCOUS_APPLY_ROWS,
+    VISCOUS_SETUP_ROWS,
+    WALL_RATE_ROWS,
+)
 
 THREADS = 128  # threads per block
 MAX_BLOCKS = 1 if SIMULATOR else 8192  # the simulator runs each thread as a Python thread: few of them
@@ -45,6 +54,9 @@ stiffness_at = device_function(bodies.stiffness_at)
 viscosity_at = device_function(bodies.viscosity_at)
 pf_global_at = device_function(bodies.pf_global_at)
 wall_rate_at = device_function(bodies.wall_rate_at)
+viscous_setup_at = device_function(bodies.viscous_setup_at)
+viscous_apply_at = device_function(bodies.viscous_apply_at)
+cg_precondition_at = device_function(bodies.cg_precondition_at)
 w = device_function(kernels.w)
 
 
@@ -171,6 +183,20 @@ def passes(kf: int, kb: int):
         for i in range(cuda.grid(1), x.shape[0], cuda.gridsize(1)):
             wall_rate_at(i, x, xb, mb, vb, nb, cb, h, buf, gvb)
 
+    @cuda.jit
+    def viscous_setup(x, v, mf, rho, xb, mb, vb, nf, cf, nb, cb, h, rho0, nu_dt, wall_factor, full, b, diag, wmat):
+        buf = cuda.local.array((VISCOUS_SETUP_ROWS, k_all), f64)
+        for i in range(cuda.grid(1), x.shape[0], cuda.gridsize(1)):
+            viscous_setup_at(
+                i, x, v, mf, rho, xb, mb, vb, nf, cf, nb, cb, h, rho0, nu_dt, wall_factor, full, buf, b, diag, wmat
+            )
+
+    @cuda.jit
+    def viscous_apply(x, p, mf, rho, nf, cf, h, nu_dt, wmat, out, pdot):
+        buf = cuda.local.array((VISCOUS_APPLY_ROWS, kf), f64)
+        for i in range(cuda.grid(1), x.shape[0], cuda.gridsize(1)):
+            viscous_apply_at(i, x, p, mf, rho, nf, cf, h, nu_dt, wmat, buf, out, pdot)
+
     kernels = {
         "density_factor_lambda": density_factor_lambda,
         "divergence_residual": divergence_residual,
@@ -179,6 +205,8 @@ def passes(kf: int, kb: int):
         "xsph": xsph,
         "pf_global": pf_global,
         "wall_rate": wall_rate,
+        "viscous_setup": viscous_setup,
+        "viscous_apply": viscous_apply,
     }
     for k in kernels.values():
         k.strides = (kf, kb)  # what passes() was called with (a compile check rebuilds them)
@@ -230,6 +258,13 @@ def warm_stiffness(k_total, scale, rate, n_nbrs, min_nbrs, warm):
         on = (rate[i] > 0.0 and n_nbrs[i] >= min_nbrs) if masked else True
         warm[i] = 0.5 * min(k_total[i] * scale, 0.5) if on else 0.0
         k_total[i] = 0.0
+
+
+@cuda.jit
+def cg_precondition(r, diag, rho, mf, z, rz, rr):
+    """bodies.cg_precondition_at for every particle (the implicit viscosity's Jacobi step)."""
+    for i in range(cuda.grid(1), r.shape[0], cuda.gridsize(1)):
+        cg_precondition_at(i, r, diag, rho, mf, z, rz, rr)
 
 
 # Flat (1D) views: the vector operations below see every array as one run of numbers.

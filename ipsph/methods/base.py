@@ -18,6 +18,7 @@ from ..boundary import Boundary
 from ..model import Scene
 from ..params import support
 from ..particles import ParticleState
+from .viscosity import WALL_FACTOR, ViscosityScratch, viscous_solve
 
 PAIR_CACHE_BYTES = 24  # per neighbour-list slot: mf grad W_ij, three float64
 
@@ -33,6 +34,7 @@ class StepReport:
     pd_passes: int = 0
     divergence_iterations: int = 0
     density_iterations: int = 0
+    viscosity_iterations: int = 0  # implicit viscosity: conjugate-gradient iterations
     solver_maxed: int = 0  # solves that stopped at their iteration cap, unconverged
     timings: dict[str, float] = field(default_factory=dict)  # seconds per phase
 
@@ -110,12 +112,16 @@ class Method:
         self.dt_prev: float | None = None
         self.report = StepReport()
         self.walls = None  # a rigid.WallDriver when walls move (Simulation sets it)
+        # nu of the explicit Standard model in the viscosity pass (0 with the other models)
+        self.nu_standard = scene.kinematic_viscosity_m2s if scene.viscosity_model == "standard" else 0.0
 
     # -- scratch at capacity, used at the active count ---------------------------------------
     def allocate_scratch(self, data_cls) -> None:
         """`self.data`: the method's scratch, allocated once for the state's capacity and used
         through views of its first n rows (the same arrays when n = capacity: no emitters)."""
         self._scratch = data_cls.allocate(self.be, self.state.capacity)
+        implicit = self.scene.viscosity_model == "implicit" and self.scene.kinematic_viscosity_m2s > 0.0
+        self._visc_scratch = ViscosityScratch.allocate(self.be, self.state.capacity) if implicit else None
         self.resize(self.state.n)
 
     def resize(self, n: int) -> None:
@@ -123,6 +129,8 @@ class Method:
         caller then runs `prepare()`, which recomputes what the method derives from positions."""
         cap = self.state.capacity
         self.data = self._scratch if n == cap else _head(self._scratch, self.be, n, cap)
+        vs = self._visc_scratch
+        self.visc = vs if vs is None or n == cap else _head(vs, self.be, n, cap)
 
     # -- bookkeeping --------------------------------------------------------------------------
     @contextmanager
@@ -150,6 +158,32 @@ class Method:
         neither goes negative when no particle is compressed (a free-falling or spreading fluid)."""
         be, n = self.be, self.state.n
         return be.mean(dens.err), max(be.max(dens.rho) / self.fluid.rho0 - 1.0, 0.0) if n else 0.0
+
+    # -- the implicit viscosity (methods.viscosity; a no-op with the other models) --------------
+    def implicit_viscosity(self, dt: float, x, v, dens) -> None:
+        """v <- (I - nu dt L)^-1 v at the positions x (method.md section 10), walls as
+        simulation.viscosity_walls says; `dens` the densities at x."""
+        if self.visc is None:
+            return
+        with self.timer("viscositySolve"):
+            sc = self.scene
+            it, _, capped = viscous_solve(
+                self.be,
+                self.fluid,
+                x,
+                v,
+                dens,
+                self.boundary,
+                self.lists,
+                dt,
+                sc.kinematic_viscosity_m2s,
+                WALL_FACTOR[sc.viscosity_walls],
+                self.cfg.viscosity,
+                self.visc,
+                sc.particle_radius,
+            )
+            self.report.viscosity_iterations = it
+            self.report.solver_maxed += capped
 
     # -- moving walls (ipsph.rigid; all three no-ops with static walls) -------------------------
     def move_walls(self, dt: float) -> None:
@@ -195,7 +229,8 @@ class Method:
     @property
     def nbytes(self) -> int:
         """Memory of the method's own arrays: its scratch container and the pair cache."""
-        unique = {id(a): a for a in (*_arrays(getattr(self, "_scratch", self.data)), self.pairs._store)}
+        own = (*_arrays(getattr(self, "_scratch", self.data)), *_arrays(getattr(self, "_visc_scratch", None)))
+        unique = {id(a): a for a in (*own, self.pairs._store)}
         return sum(int(a.nbytes) for a in unique.values())
 
     @property

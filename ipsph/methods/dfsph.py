@@ -36,7 +36,7 @@ class DFSPHData:
 
 class DFSPH(Method):
     name = "dfsph"
-    phases = ("neighbourSearch", "densities", "divergenceSolve", "xsph", "densitySolve")
+    phases = ("neighbourSearch", "densities", "divergenceSolve", "xsph", "viscositySolve", "densitySolve")
 
     def __init__(self, *args):
         super().__init__(*args)
@@ -75,13 +75,14 @@ class DFSPH(Method):
                 nl,
                 fl.h,
                 self.scene.viscosity,
-                self.scene.standard_viscosity * dt,
+                self.nu_standard * dt,
                 d.v_out,
                 d.drho,
                 be.NO_DISPLACEMENT,
                 be.NO_PAIRS,
             )
             be.copy(st.v, d.v_out)
+        self.implicit_viscosity(dt, st.x, st.v, d.dens)  # viscosity_model implicit (method.md 10)
         with self.timer("densitySolve"):
             rep.density_iterations, maxed = density_solve(
                 be, fl, st.x, st.v, d.dens, nl, d.pairs, st.k_dens, d.solve, dt, self.dt_prev, cfg.dfsph

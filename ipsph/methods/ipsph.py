@@ -31,7 +31,7 @@ class IPSPHData(PFData):
 
 class IPSPH(ProjectiveMethod):
     name = "ipsph"
-    phases = ("neighbourSearch", "solvePDConstraints", "xsph", "divergenceSolve")
+    phases = ("neighbourSearch", "solvePDConstraints", "xsph", "viscositySolve", "divergenceSolve")
     Data = IPSPHData
 
     def __init__(self, *args):
@@ -51,6 +51,7 @@ class IPSPH(ProjectiveMethod):
             # also sums this step's PF displacement for the next warm start (if on) and fills the
             # pair cache for the divergence solve at the same positions
             pairs = self.velocities(dt, x_old, st.pd_warm if cfg.warm_start > 0.0 else None, fill_pairs=div.enabled)
+        self.implicit_viscosity(dt, st.x, st.v, d.dens)  # viscosity_model implicit (method.md 10)
         if div.enabled:
             with self.timer("divergenceSolve"):
                 rep.divergence_iterations, rep.divergence_error, maxed = divergence_solve(

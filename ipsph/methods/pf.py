@@ -118,7 +118,7 @@ class ProjectiveMethod(Method):
             self.lists,
             fl.h,
             self.scene.viscosity,
-            self.scene.standard_viscosity * dt,
+            self.nu_standard * dt,
             d.v_out,
             d.drho,
             be.NO_DISPLACEMENT if disp is None else disp,
@@ -133,7 +133,7 @@ class ProjectiveMethod(Method):
 
 class PF(ProjectiveMethod):
     name = "pf"
-    phases = ("neighbourSearch", "solvePDConstraints", "xsph")
+    phases = ("neighbourSearch", "solvePDConstraints", "xsph", "viscositySolve")
 
     def step(self, dt: float) -> StepReport:
         be, st, d = self.be, self.state, self.data
@@ -144,6 +144,7 @@ class PF(ProjectiveMethod):
         with self.timer("xsph"):
             self.velocities(dt, x_old)
             rep.divergence_error = dt * be.mean_positive(d.drho) / self.fluid.rho0
+        self.implicit_viscosity(dt, st.x, st.v, d.dens)  # viscosity_model implicit (method.md 10)
         be.pf_pressure(st.pressure, st.pd_lambda, self.fluid.rho0, dt)  # p = -rho0 Lam / dt^2 (method.md 3)
         self.wall_reaction(dt, lam=st.pd_lambda)
         return self.end(dt, d.dens)

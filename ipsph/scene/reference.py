@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ..params import AUTO, PARAMS, RENAMED, SECTION_DOCS, Param
+from ..params import AUTO, PARAMS, RENAMED, REPLACED, SECTION_DOCS, Param
 from .text import _allowed, _fmt_default, _type_name
 from .validate import ENTITIES
 
@@ -87,6 +87,7 @@ def reference_markdown() -> str:
             "|---|---|",
         ]
         out += [f"| `{old}` | `{new}` |" for old, new in RENAMED.items()]
+        out += [f"| `{old}` | {new} |" for old, new in REPLACED.items()]
         out.append("")
     out.append(IMPORT_NOTES.strip())
     out.append("")

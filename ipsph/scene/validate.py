@@ -32,7 +32,7 @@ from ..model import (
     TimeStepConfig,
     Transform,
 )
-from ..params import AUTO, PARAM_BY_PATH, PARAMS, RENAMED, Param, default, spacing
+from ..params import AUTO, PARAM_BY_PATH, PARAMS, RENAMED, REPLACED, Param, default, spacing
 from .text import _allowed, _fmt, _fmt_vec, _show, _tname
 
 ENTITIES = ("fluid", "boundary", "emitter", "sink")
@@ -61,6 +61,8 @@ def renamed_error(path: str, where: str) -> None:
     plain = re.sub(r"\[\d+\]|\.\d+(?=\.)", "", path)
     if plain in RENAMED:
         raise ConfigError(f"{where}: {path} was renamed to {RENAMED[plain]}: write it as {RENAMED[plain]}")
+    if plain in REPLACED:
+        raise ConfigError(f"{where}: {path} was replaced: write {REPLACED[plain]}")
 
 
 def set_path(d: dict, path: str, value: Any) -> None:
@@ -157,6 +159,7 @@ def _build_scene(data: dict, base_dir: Path, name: str | None, source: Path | No
         )
     }
     r = kw.get("particle_radius", default("simulation.particle_radius"))
+    _check_viscosity(ctx, kw)
 
     fluids_raw = _entity_list(ctx, data, "fluid")
     if not fluids_raw and not _entity_list(ctx, data, "emitter"):
@@ -192,6 +195,18 @@ def _build_scene(data: dict, base_dir: Path, name: str | None, source: Path | No
     flow.unique_names(ctx, "sink", sinks)
     flow.check_domain(ctx, sections["domain"])
     return Scene(fluids=fluids, boundaries=boundaries, emitters=emitters, sinks=sinks, **sections, **kw)
+
+
+def _check_viscosity(ctx: _Ctx, kw: dict) -> None:
+    """A kinematic viscosity needs a model that uses it (xsph would silently ignore it)."""
+    nu = kw.get("kinematic_viscosity_m2s", default("simulation.kinematic_viscosity_m2s"))
+    model = kw.get("viscosity_model", default("simulation.viscosity_model"))
+    if nu > 0.0 and model == "xsph":
+        raise ctx.fail(
+            "simulation.kinematic_viscosity_m2s",
+            f'{_fmt(nu)} m^2/s has no effect with viscosity_model = "xsph": '
+            'set simulation.viscosity_model = "implicit" (or "standard")',
+        )
 
 
 def _walk(ctx: _Ctx, data: Any, tree: dict, prefix: str, out: dict) -> None:

@@ -38,6 +38,10 @@ _VISCOSITY_METHODS = {
     6: "Takahashi et al. 2015",
     7: "Weiler et al. 2018",
 }
+WEILER_2018 = 7  # _VISCOSITY_METHODS' number of "Weiler et al. 2018" (SPlisHSPlasH 2.x scenes number it 6)
+_PHYSICAL = {1: "standard", WEILER_2018: "implicit"}  # viscosityMethod -> simulation.viscosity_model (else XSPH)
+# a material's viscosity block named after its model: the name decides (the numbers moved between versions)
+_VISCOSITY_BLOCKS = {"Standard viscosity": 1, "XSPH viscosity": 2, "Weiler et al. 2018": WEILER_2018}
 
 # Unsupported keys worth a reason in the warning (anything else is listed bare).
 _NOTES = {
@@ -97,6 +101,8 @@ class _Importer:
         self.raw = raw
         self.ignored: dict[str, list[str]] = {}  # "RigidBodies[*].color" -> ["0", "1"]
         self.notes: list[str] = []
+        self.viscous_solver: dict = {}  # [solver.viscosity] from a Weiler 2018 block
+        self.viscous_walls: str | None = None  # simulation.viscosity_walls from its viscosityBoundary
 
     # -- helpers ---------------------------------------------------------------------------------
     def fail(self, key: str, msg: str) -> ConfigError:
@@ -359,13 +365,19 @@ class _Importer:
             )
         if densities:
             sim["density0"] = densities.pop()
-        standard = {m == 1 for _, _, v, m in found if v is not None}
-        if len(standard) > 1:
+        models = {_PHYSICAL.get(m, "xsph") for _, _, v, m in found if v is not None}
+        if len(models) > 1:
             raise self.fail("Materials", "fluids with different viscosity methods are not supported")
         if viscosities:
-            if standard.pop():  # SPlisHSPlasH's Standard viscosity: the same model, no XSPH on top
-                sim["standard_viscosity"] = viscosities.pop()
+            model = models.pop()
+            if model != "xsph":  # Standard or Weiler 2018: nu in m^2/s, the same operator, no XSPH on top
+                sim["viscosity_model"] = model
+                sim["kinematic_viscosity_m2s"] = viscosities.pop()
                 sim["viscosity"] = 0.0
+                if self.viscous_solver:
+                    out.setdefault("solver", {})["viscosity"] = self.viscous_solver
+                if self.viscous_walls is not None:
+                    sim["viscosity_walls"] = self.viscous_walls
             else:
                 sim["viscosity"] = viscosities.pop()
         else:
@@ -389,8 +401,13 @@ class _Importer:
 
             if key in MATERIAL_KEYS:  # the emitter box: [domain] (emitters.domain)
                 continue
-            if isinstance(value, dict) and "viscosity" in value and "viscosity" in key.lower():
+            named = isinstance(value, dict) and (key in _VISCOSITY_BLOCKS or "viscosity" in key.lower())
+            if named and "viscosity" in value:
                 visc = self.num(value["viscosity"], f"{label}.{key}.viscosity")
+                if _VISCOSITY_BLOCKS.get(key) == WEILER_2018:
+                    vmethod = WEILER_2018  # SPlisHSPlasH 2.x numbers it 6, older versions 7
+                    self.weiler_block(value, f"{label}.{key}", section, key, index)
+                    continue
                 for sub in value:
                     if sub != "viscosity":
                         self.ignore(f"{section}.{key}", sub, index=index)
@@ -404,8 +421,16 @@ class _Importer:
             elif vmethod == 1:
                 if visc is not None:
                     self.notes.append(
-                        f"{label}.viscosityMethod=1 (Standard): "
-                        f"simulation.standard_viscosity = {visc:g} m^2/s, XSPH off"
+                        f"{label}.viscosityMethod=1 (Standard): simulation.viscosity_model = standard, "
+                        f"kinematic_viscosity_m2s = {visc:g}, XSPH off"
+                    )
+            elif vmethod == WEILER_2018:
+                if visc is not None:
+                    self.notes.append(
+                        f"{label}: Weiler et al. 2018: simulation.viscosity_model = implicit, "
+                        f"kinematic_viscosity_m2s = {visc:g}, XSPH off (the same operator and backward-Euler "
+                        "solve; ours uses Jacobi-preconditioned CG, the fluid's nu at no-slip walls, and "
+                        "its own wall particles: docs/method.md section 10)"
                     )
             elif visc is not None:
                 self.notes.append(
@@ -415,6 +440,28 @@ class _Importer:
         elif vmethod is None and visc is not None:
             self.notes.append(f"{label}: no viscosityMethod; viscosity {visc:g} is used as the XSPH coefficient zeta")
         return index, density, visc, vmethod
+
+    def weiler_block(self, b: dict, label: str, section: str, key: str, index: int | None) -> None:
+        """The "Weiler et al. 2018" block's solver settings -> [solver.viscosity], its wall
+        coefficient -> simulation.viscosity_walls (no-slip with the fluid's nu, or free-slip at 0)."""
+        for sub, value in b.items():
+            if sub == "viscosity":
+                continue
+            if sub == "viscoMaxIter":
+                self.viscous_solver["max_iterations"] = self.int_(value, f"{label}.{sub}")
+            elif sub == "viscoMaxError":  # a relative residual: 0.01 is 1 %
+                self.viscous_solver["error_pct"] = 100.0 * self.num(value, f"{label}.{sub}")
+            elif sub == "viscosityBoundary":
+                nu_b = self.num(value, f"{label}.{sub}")
+                self.viscous_walls = "no-slip" if nu_b > 0.0 else "free-slip"
+                fluid = b.get("viscosity")
+                if nu_b > 0.0 and nu_b != fluid:
+                    self.notes.append(
+                        f"{label}.viscosityBoundary = {nu_b:g}: walls are no-slip with the fluid's nu "
+                        f"({fluid:g}); ipsph has no separate wall viscosity"
+                    )
+            else:
+                self.ignore(f"{section}.{key}", sub, index=index)
 
     def dense_mode(self, item: dict, label: str) -> None:
         mode = self.int_(item.get("denseMode", 0), f"{label}.denseMode")

@@ -22,7 +22,8 @@ validated as a TOML scene, so override keys are ipsph's (`--set simulation.metho
 | `Projective Fluids`: `minIterations`, `maxIterations`, `maxError` (%) | `solver.ipsph.min_passes`, `max_passes`, `density_error_pct` (used when you switch the method to ipsph; plain PF runs `solver.pf.passes` = 3 fixed passes, as SPlisHSPlasH does) |
 | 2.0.0 flat `maxIterations`, `maxError`, ... | as the block of the scene's method; `stiffness` -> `solver.pf.stiffness` |
 | `Materials[].density0`, `viscosity` (also inside a `"... viscosity"` block) | `simulation.density0`, `simulation.viscosity` (XSPH zeta) |
-| `Materials[].viscosityMethod` 1 (Standard) with its `viscosity` | `simulation.standard_viscosity` (nu, the same model), `simulation.viscosity` = 0 |
+| `Materials[].viscosityMethod` 1 (Standard) with its `viscosity` | `simulation.viscosity_model` = standard, `kinematic_viscosity_m2s` = nu (the same model), `simulation.viscosity` = 0 |
+| `Materials[]."Weiler et al. 2018"`: `viscosity`, `viscosityBoundary`, `viscoMaxIter`, `viscoMaxError` (a fraction) | `simulation.viscosity_model` = implicit, `kinematic_viscosity_m2s` = nu, `simulation.viscosity` = 0; `viscosity_walls` = no-slip if `viscosityBoundary` > 0 (with the fluid's nu: noted when it differs), else free-slip; `solver.viscosity.max_iterations`, `error_pct` = 100 x `viscoMaxError`. The block's name decides (SPlisHSPlasH 2.x numbers the model 6, older versions 7); docs/method.md section 10 says where the models differ |
 | `dataExportFPS` | `output.fps` |
 | `cameraPosition`, `cameraLookat` | `render.camera_position`, `render.focal_point` |
 | `FluidBlocks[]`: `start`, `end`, `translation`, `scale`, `initialVelocity` | `[[fluid]] box` with min = scale * start + translation, max = scale * end + translation (as SPlisHSPlasH's scene loader), `velocity` |
@@ -41,7 +42,7 @@ Refused (ConfigError): `simulationMethod` other than 4 or 5, `denseMode` other t
 Warned about, in one message (`Scene.warnings`): every other key, e.g.
 `boundaryHandlingMethod` (ipsph always uses Akinci et al. 2012 boundary particles),
 `numberOfStepsPerRenderUpdate`, `mapResolution`, `color`, `surfaceTension`, and a
-`viscosityMethod` other than XSPH or Standard: its `viscosity` value is then used as the XSPH
+`viscosityMethod` other than XSPH, Standard or Weiler 2018: its `viscosity` value is then used as the XSPH
 coefficient (method 0, None, gives zeta = 0). The Standard model's wall friction
 (`viscosityBoundary`, default 0) is not imported (warned if set). Where a key is absent,
 SPlisHSPlasH's own default is used (listed in the table), except `end_time`, which defaults to
