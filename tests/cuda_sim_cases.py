@@ -21,6 +21,8 @@ import numpy as np  # noqa: E402
 from ipsph.backends import Densities, get_backend  # noqa: E402
 from ipsph.neighbours import brute_force_neighbours  # noqa: E402
 from ipsph.scene import scene_from_dict  # noqa: E402
+from ipsph.methods.viscosity import ViscosityScratch, viscous_solve  # noqa: E402
+from ipsph.model import ViscosityConfig  # noqa: E402
 from ipsph.simulation import Simulation, sample_scene  # noqa: E402
 
 
@@ -333,6 +335,18 @@ def case_passes() -> dict:
     bc.viscosity(xs, v, fl.mf, dc, lam, lc, fl.h, 0.01, 1e-4, *outs_c, bc.NO_PAIRS)
     bg.viscosity(xg, vg, fl.mf, dg, bg.asarray(lam), lg, fl.h, 0.01, 1e-4, *outs_g, bg.NO_PAIRS)
     diffs["viscosity"] = max(rel(p, bg.to_host(q)) for p, q in zip(outs_c, outs_g))
+    # the implicit viscosity's CG solve (issue 30): nu dt = 1e-3 m^2 with no-slip walls, to a tight tolerance
+    vcfg = ViscosityConfig(error_pct=1e-4, max_iterations=200)
+    vs_c, vs_g = v.copy(), bg.asarray(v)
+    r_ = cpu.scene.particle_radius
+    it_c = viscous_solve(
+        bc, fl, xs, vs_c, dc, cpu.boundary, lc, 1e-3, 1.0, 1.0, vcfg, ViscosityScratch.allocate(bc, n), r_
+    )
+    it_g = viscous_solve(
+        bg, fl, xg, vs_g, dg, gpu.boundary, lg, 1e-3, 1.0, 1.0, vcfg, ViscosityScratch.allocate(bg, n), r_
+    )
+    diffs["viscous_solve"] = rel(vs_c, bg.to_host(vs_g))
+    res["viscous_iterations"] = [it_c[0], it_g[0]]
     s = xs + 1e-3 * rng.standard_normal(xs.shape)
     xo_c, ls_c = np.zeros_like(xs), lam.copy()
     xo_g, ls_g = bg.zeros(n, (3,)), bg.asarray(lam)

@@ -183,9 +183,12 @@ def test_every_pass_and_reduction_matches_the_cpu(results):
         "density_residual.cached",
         "mean",
         "speed_energy",
+        "viscous_solve",
     } <= set(diffs)
     bad = {k: v for k, v in diffs.items() if not v <= FLOAT64_REL}
     assert not bad, bad
+    it_cpu, it_gpu = r["viscous_iterations"]  # the implicit viscosity: the same CG path on both
+    assert it_cpu == it_gpu and it_cpu > 1
     assert r["max_exact"] and r["take_untake"]
     assert r["oom"] and "out of memory" in r["oom"] and "100,000,000 particles" in r["oom"], r["oom"]
     n_half = r["unhealthy"][1]

@@ -65,12 +65,12 @@ def test_current_layout_solver_blocks_are_mapped():
     assert (sv.divergence.error_pct, sv.divergence.max_iterations) == (0.1, 100)
     assert sv.divergence.enabled is True
     assert s.time_step.dt_initial == 0.005 and s.time_step.cfl_factor == 1.0
-    assert (s.standard_viscosity, s.viscosity) == (0.01, 0.0)  # its Standard model, no XSPH on top
+    assert (s.viscosity_model, s.kinematic_viscosity_m2s, s.viscosity) == ("standard", 0.01, 0.0)  # its model, no XSPH
     w = s.warnings[0]
     assert "numberOfStepsPerRenderUpdate" in w and "particleAttributes" in w
     assert "boundaryHandlingMethod=2 (ipsph always uses Akinci et al. 2012" in w
     assert "mapResolution" in w and "RigidBodies[0].color" in w
-    assert "viscosityMethod=1 (Standard): simulation.standard_viscosity = 0.01 m^2/s, XSPH off" in w
+    assert "viscosityMethod=1 (Standard): simulation.viscosity_model = standard, kinematic_viscosity_m2s = 0.01" in w
 
 
 def test_fluid_block_translation_and_scale():
@@ -234,14 +234,14 @@ def test_standard_viscosity_is_imported_as_the_same_model(tmp_path):
         ],
     }
     s = load_scene(scene_file(tmp_path, data))
-    assert (s.standard_viscosity, s.viscosity) == (0.02, 0.0)
+    assert (s.viscosity_model, s.kinematic_viscosity_m2s, s.viscosity) == ("standard", 0.02, 0.0)
     w = s.warnings[0]
     assert "viscosityBoundary" in w  # the model's wall friction is not imported: said, not dropped
-    assert "standard_viscosity = 0.02 m^2/s, XSPH off" in w
+    assert "kinematic_viscosity_m2s = 0.02, XSPH off" in w
     # another non-XSPH model keeps the documented fallback (its value as XSPH zeta)
     data["Materials"] = [{"id": "Fluid", "viscosityMethod": 3, "viscosity": 0.02}]
     s = load_scene(scene_file(tmp_path, data, "b.json"))
-    assert (s.standard_viscosity, s.viscosity) == (0.0, 0.02)
+    assert (s.viscosity_model, s.kinematic_viscosity_m2s, s.viscosity) == ("xsph", 0.0, 0.02)
 
 
 CLOSED_CUBE = "".join(f"v {x} {y} {z}\n" for z in (0, 1) for y in (0, 1) for x in (0, 1)) + "".join(
@@ -270,3 +270,21 @@ def test_dynamic_rigid_body_is_imported_with_its_density(tmp_path):
     assert default.dynamic and default.density == 1000.0
     assert not tank.dynamic and not tank.moving
     assert "no density given, SPlisHSPlasH's default 1000 kg/m^3 used" in s.warnings[0]
+
+
+@pytest.mark.parametrize("number", [6, 7])  # SPlisHSPlasH 2.x numbers Weiler 2018 6, older versions 7
+def test_weiler_2018_viscosity_is_imported_as_the_implicit_model(tmp_path, number):
+    """SPlisHSPlasH's CoilingModel_Weiler2018 material: nu in m^2/s, its solver settings, its walls."""
+    weiler = {"viscosity": 5, "viscosityBoundary": 4, "viscoMaxIter": 200, "viscoMaxError": 0.05}
+    data = {
+        "FluidBlocks": [BLOCK],
+        "Materials": [{"id": "Fluid", "viscosityMethod": number, "Weiler et al. 2018": weiler}],
+    }
+    s = load_scene(scene_file(tmp_path, data))
+    assert (s.viscosity_model, s.kinematic_viscosity_m2s, s.viscosity) == ("implicit", 5.0, 0.0)
+    assert (s.viscosity_walls, s.solver.viscosity.max_iterations, s.solver.viscosity.error_pct) == ("no-slip", 200, 5.0)
+    w = s.warnings[0]
+    assert "viscosityBoundary = 4" in w and "no separate wall viscosity" in w  # where the models differ: said
+    weiler["viscosityBoundary"] = 0  # no wall friction: free-slip
+    s = load_scene(scene_file(tmp_path, data, "b.json"))
+    assert s.viscosity_walls == "free-slip"

@@ -138,7 +138,8 @@ def test_thick_fluid_steps_within_the_viscous_limit_and_stays_calm():
                 "particle_radius": R,
                 "end_time": 0.05,
                 "viscosity": 0.0,
-                "standard_viscosity": THICK_NU,
+                "viscosity_model": "standard",
+                "kinematic_viscosity_m2s": THICK_NU,
                 "settle": "off",
             },  # the block's own first steps
             "time_step": {"dt_max": 0.005},

@@ -379,81 +379,93 @@ def wall_rate_at(i, x, xb, mb, vb, nb, cb, h, buf, gvb):
 
 
 # -- the implicit viscosity (method.md section 10) -------------------------------------------------
+@njit(inline="always")
+def eps_of(h):
+    """The Standard operator's regulariser 0.01 H^2 (SPlisHSPlasH's)."""
+    return 0.01 * h * h
+
+
 @njit(inline="always", fastmath=FAST)
 def viscous_setup_at(
     i, x, v, mf, rho, xb, mb, vb, nf, cf, nb, cb, h, rho0, nu_dt, wall_factor, full, buf, b, diag, wmat
 ):
     """The constant parts of the implicit viscosity system A v = b of particle i [WKBB18]:
 
-        (A v)_i = v_i + nu dt sum_j V_j k_ij (x_ij . v_ij) x_ij + Wm_i v_i
-        b_i     = v_i + s_w nu dt sum_b V_b k_ib (x_ib . v_b) x_ib            (v_b: the wall's velocity)
-        Wm_i    = s_w nu dt sum_b V_b k_ib x_ib x_ib^T          (the walls' block: 6 entries, xx yy zz xy xz yz)
+        (A v)_i = v_i + nu dt sum_j V_j k_ij (x_ij . v_ij) x_ij + Wm_i (v_i - 0)
+        b_i     = v_i + Wm_i vw_i
         diag_i  = the diagonal of A's 3x3 block of i             (the Jacobi preconditioner)
 
     k_ij = -10 g(r_ij) / (r_ij^2 + 0.01 H^2) >= 0 (grad W_ij = g(r_ij) x_ij: SPlisHSPlasH's Standard
-    operator, 2 (d + 2) = 10 in 3D), V_j = mf / rho_j, V_b = m_b / rho0 = Psi_b. `v` is the
-    velocity before the solve (the right-hand side).
+    operator, 2 (d + 2) = 10 in 3D), V_j = mf / rho_j. `v` is the velocity before the solve.
 
-    The walls stand in for the part of i's neighbourhood the fluid does not fill [choice, method.md
-    section 10]: s_w = wall_factor (1 no-slip, 0 free-slip) times the missing share of the full
-    neighbourhood's trace, max(full - sum_j V_j k_ij r_ij^2, 0) / sum_b V_b k_ib r_ib^2, with
-    full = sum over a complete lattice (`full`). Next to a flat box wall this is 1 to 1 %; next to
-    curved walls, where the lattice leaves gaps of 1-2 d, it restores the friction of a wall in contact."""
-    eps = 0.01 * h * h
+    The walls [choice, method.md section 10] fill the part of i's neighbourhood the fluid leaves
+    empty, moving with the walls' velocity: with F_i = sum_j V_j k_ij x_ij x_ij^T and the complete
+    lattice's block (full / 3) I (`full`: its trace),
+
+        Wm_i  = s_w nu dt psd((full / 3) I - F_i)          (6 entries: xx yy zz xy xz yz)
+        vw_i  = sum_b V_b k_ib v_b / sum_b V_b k_ib         (V_b = m_b / rho0, the walls' velocity)
+
+    for particles with wall neighbours (0 otherwise: a free surface takes no friction), s_w =
+    wall_factor (1 no-slip, 0 free-slip); psd() lifts the block by Gershgorin's bound so that it
+    never turns negative. Next to a flat box wall it reproduces a linear shear to 1 %; next to
+    curved walls, where the lattice leaves gaps of 1-2 d, the gap counts as wall."""
     n_f = _gather_xf(i, x, nf, cf, buf)
     n_b = cb[i]
     _gather_diff(i, x, xb, nb, n_b, buf, DX, n_f)
     for k in range(n_f):
         buf[C0, k] = mf / rho[nf[i, k]]
-        buf[C1, k] = 0.0
-        buf[C2, k] = 0.0
-        buf[C3, k] = 0.0
     for k in range(n_b):
         bj = nb[i, k]
         buf[C0, n_f + k] = mb[bj] / rho0
         buf[C1, n_f + k] = vb[bj, 0]
         buf[C2, n_f + k] = vb[bj, 1]
         buf[C3, n_f + k] = vb[bj, 2]
-    f0 = f1 = f2 = 0.0  # fluid: sum_j V_j k_ij x_ij,c^2
+    f00 = f11 = f22 = f01 = f02 = f12 = 0.0  # F_i = sum_j V_j k_ij x_ij x_ij^T
     for k in range(n_f):
         d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
         r2 = d0 * d0 + d1 * d1 + d2 * d2
-        kv = -10.0 * buf[C0, k] * grad_w_factor(math.sqrt(r2), h) / (r2 + eps)
-        f0 += kv * d0 * d0
-        f1 += kv * d1 * d1
-        f2 += kv * d2 * d2
-    w00 = w11 = w22 = w01 = w02 = w12 = 0.0  # walls: sum_b V_b k_ib x_ib x_ib^T
-    q0 = q1 = q2 = 0.0  # walls: sum_b V_b k_ib (x_ib . v_b) x_ib
+        kv = -10.0 * buf[C0, k] * grad_w_factor(math.sqrt(r2), h) / (r2 + eps_of(h))
+        f00 += kv * d0 * d0
+        f11 += kv * d1 * d1
+        f22 += kv * d2 * d2
+        f01 += kv * d0 * d1
+        f02 += kv * d0 * d2
+        f12 += kv * d1 * d2
+    kw = q0 = q1 = q2 = 0.0  # sum_b V_b k_ib (v_b)
     for k in range(n_f, n_f + n_b):
         d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
         r2 = d0 * d0 + d1 * d1 + d2 * d2
-        kv = -10.0 * buf[C0, k] * grad_w_factor(math.sqrt(r2), h) / (r2 + eps)
-        w00 += kv * d0 * d0
-        w11 += kv * d1 * d1
-        w22 += kv * d2 * d2
-        w01 += kv * d0 * d1
-        w02 += kv * d0 * d2
-        w12 += kv * d1 * d2
-        xv = kv * (d0 * buf[C1, k] + d1 * buf[C2, k] + d2 * buf[C3, k])
-        q0 += xv * d0
-        q1 += xv * d1
-        q2 += xv * d2
-    tw = w00 + w11 + w22
-    sw = 0.0
-    if tw > 0.0:
-        sw = wall_factor * nu_dt * max(full - (f0 + f1 + f2), 0.0) / tw
-    b[i, 0] = v[i, 0] + sw * q0
-    b[i, 1] = v[i, 1] + sw * q1
-    b[i, 2] = v[i, 2] + sw * q2
-    diag[i, 0] = 1.0 + nu_dt * f0 + sw * w00
-    diag[i, 1] = 1.0 + nu_dt * f1 + sw * w11
-    diag[i, 2] = 1.0 + nu_dt * f2 + sw * w22
-    wmat[i, 0] = sw * w00
-    wmat[i, 1] = sw * w11
-    wmat[i, 2] = sw * w22
-    wmat[i, 3] = sw * w01
-    wmat[i, 4] = sw * w02
-    wmat[i, 5] = sw * w12
+        kv = -10.0 * buf[C0, k] * grad_w_factor(math.sqrt(r2), h) / (r2 + eps_of(h))
+        kw += kv
+        q0 += kv * buf[C1, k]
+        q1 += kv * buf[C2, k]
+        q2 += kv * buf[C3, k]
+    m00 = m11 = m22 = m01 = m02 = m12 = 0.0
+    vw0 = vw1 = vw2 = 0.0
+    if kw > 0.0 and wall_factor > 0.0:
+        third = full / 3.0
+        m00, m11, m22 = third - f00, third - f11, third - f22
+        m01, m02, m12 = -f01, -f02, -f12
+        low = min(m00 - abs(m01) - abs(m02), m11 - abs(m01) - abs(m12), m22 - abs(m02) - abs(m12))
+        if low < 0.0:  # Gershgorin: every eigenvalue >= low; lift the block to positive semi-definite
+            m00 -= low
+            m11 -= low
+            m22 -= low
+        sw = wall_factor * nu_dt
+        m00, m11, m22, m01, m02, m12 = sw * m00, sw * m11, sw * m22, sw * m01, sw * m02, sw * m12
+        vw0, vw1, vw2 = q0 / kw, q1 / kw, q2 / kw
+    b[i, 0] = v[i, 0] + m00 * vw0 + m01 * vw1 + m02 * vw2
+    b[i, 1] = v[i, 1] + m01 * vw0 + m11 * vw1 + m12 * vw2
+    b[i, 2] = v[i, 2] + m02 * vw0 + m12 * vw1 + m22 * vw2
+    diag[i, 0] = 1.0 + nu_dt * f00 + m00
+    diag[i, 1] = 1.0 + nu_dt * f11 + m11
+    diag[i, 2] = 1.0 + nu_dt * f22 + m22
+    wmat[i, 0] = m00
+    wmat[i, 1] = m11
+    wmat[i, 2] = m22
+    wmat[i, 3] = m01
+    wmat[i, 4] = m02
+    wmat[i, 5] = m12
 
 
 @njit(inline="always", fastmath=FAST)
@@ -461,7 +473,7 @@ def viscous_apply_at(i, x, p, mf, rho, nf, cf, h, nu_dt, wmat, buf, out, pdot):
     """out_i = (A p)_i = p_i + nu dt sum_j V_j k_ij (x_ij . p_ij) x_ij + Wm_i p_i   (viscous_setup_at)
     and pdot_i = V_i p_i . out_i, the mass-weighted inner product's term (A is symmetric in it:
     conjugate gradients on sum_i V_i a_i . b_i, method.md section 10)."""
-    eps = 0.01 * h * h
+    eps = eps_of(h)
     n_f = _gather_xf(i, x, nf, cf, buf)
     _gather_diff(i, p, p, nf, n_f, buf, C1, 0)
     for k in range(n_f):
