@@ -37,6 +37,7 @@ STEP_COLUMNS = {
     "pd_passes": (lambda s, n: s.pd_passes, "PF local/global passes (PF, IPSPH)"),
     "divergence_iterations": (lambda s, n: s.divergence_iterations, "divergence-solve iterations"),
     "density_iterations": (lambda s, n: s.density_iterations, "DFSPH density-solve iterations"),
+    "viscosity_iterations": (lambda s, n: s.viscosity_iterations, "implicit viscosity CG iterations"),
     "max_speed": (lambda s, n: s.max_speed, "largest particle speed [m/s]"),
     "kinetic_energy": (lambda s, n: s.kinetic_energy, "kinetic energy [J]"),
     "dt_clamped": (lambda s, n: s.dt_clamped, "1 when the CFL step fell below time_step.dt_min"),
