@@ -385,6 +385,22 @@ def eps_of(h):
     return 0.01 * h * h
 
 
+@njit(inline="always")
+def _smallest_eigenvalue(a00, a11, a22, a01, a02, a12):
+    """The smallest eigenvalue of a symmetric 3x3 matrix, in closed form (Smith 1961)."""
+    q = (a00 + a11 + a22) / 3.0
+    p1 = a01 * a01 + a02 * a02 + a12 * a12
+    p2 = (a00 - q) ** 2 + (a11 - q) ** 2 + (a22 - q) ** 2 + 2.0 * p1
+    if p2 <= 1e-300:
+        return q
+    p = math.sqrt(p2 / 6.0)
+    b00, b11, b22 = (a00 - q) / p, (a11 - q) / p, (a22 - q) / p
+    b01, b02, b12 = a01 / p, a02 / p, a12 / p
+    det = b00 * (b11 * b22 - b12 * b12) - b01 * (b01 * b22 - b12 * b02) + b02 * (b01 * b12 - b11 * b02)
+    r = min(max(det / 2.0, -1.0), 1.0)
+    return q + 2.0 * p * math.cos(math.acos(r) / 3.0 + 2.0 * math.pi / 3.0)
+
+
 @njit(inline="always", fastmath=FAST)
 def viscous_setup_at(
     i, x, v, mf, rho, xb, mb, vb, nf, cf, nb, cb, h, rho0, nu_dt, wall_factor, full, buf, b, diag, wmat
@@ -406,8 +422,8 @@ def viscous_setup_at(
         vw_i  = sum_b V_b k_ib v_b / sum_b V_b k_ib         (V_b = m_b / rho0, the walls' velocity)
 
     for particles with wall neighbours (0 otherwise: a free surface takes no friction), s_w =
-    wall_factor (1 no-slip, 0 free-slip); psd() lifts the block by Gershgorin's bound so that it
-    never turns negative. Next to a flat box wall it reproduces a linear shear to 1 %; next to
+    wall_factor (1 no-slip, 0 free-slip); psd() lifts the block by its smallest eigenvalue when that
+    is negative. Next to a flat box wall it reproduces a linear shear to 1 %; next to
     curved walls, where the lattice leaves gaps of 1-2 d, the gap counts as wall."""
     n_f = _gather_xf(i, x, nf, cf, buf)
     n_b = cb[i]
@@ -446,8 +462,8 @@ def viscous_setup_at(
         third = full / 3.0
         m00, m11, m22 = third - f00, third - f11, third - f22
         m01, m02, m12 = -f01, -f02, -f12
-        low = min(m00 - abs(m01) - abs(m02), m11 - abs(m01) - abs(m12), m22 - abs(m02) - abs(m12))
-        if low < 0.0:  # Gershgorin: every eigenvalue >= low; lift the block to positive semi-definite
+        low = _smallest_eigenvalue(m00, m11, m22, m01, m02, m12)
+        if low < 0.0:  # lift the block to positive semi-definite (a compressed neighbourhood)
             m00 -= low
             m11 -= low
             m22 -= low
