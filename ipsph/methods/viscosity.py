@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..backends.bodies import eps_of
 from ..kernels import grad_w_factor
 from ..params import spacing as lattice_spacing
 
@@ -39,7 +40,7 @@ def full_trace(spacing: float, h: float) -> float:
     keep = (r2 > 0.0) & (r2 < h * h)
     r2 = r2[keep]
     g_r = np.array([grad_w_factor(math.sqrt(q), h) for q in r2])
-    return float(np.sum(-10.0 * spacing**3 * g_r * r2 / (r2 + 0.01 * h * h)))
+    return float(np.sum(-10.0 * spacing**3 * g_r * r2 / (r2 + eps_of(h))))
 
 
 @dataclass
