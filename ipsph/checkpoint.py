@@ -82,7 +82,7 @@ def save(path: Path, sim, *, frames: int, last_frame_time: float | None, solver_
     sd = sim.state_dict()
     data = {f"state.{k}": v for k, v in sd["particles"].items()}
     data.update({f"boundary.{k}": v for k, v in sd["boundary"].items()})
-    data.update({f"walls.{k}": v for k, v in sd.get("walls", {}).items()})  # moving walls (ipsph.rigid)
+    data.update({f"walls.{k}": v for k, v in sd.get("walls", {}).items()})  # moving walls (ipsph.boundary.rigid)
     search, clock = sd["search"], sd["clock"]
     if search["grid"] is not None:
         data.update({f"grid.{k}": v for k, v in search["grid"].items()})

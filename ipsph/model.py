@@ -203,6 +203,7 @@ class Scene:
     end_time: float = D("simulation.end_time")
     viscosity: float = D("simulation.viscosity")
     standard_viscosity: float = D("simulation.standard_viscosity")
+    boundary_model: str = D("simulation.boundary_model")
     fit_wall_volumes: bool = D("simulation.fit_wall_volumes")
     settle: str = D("simulation.settle")
     time_step: TimeStepConfig = TimeStepConfig()

@@ -37,6 +37,7 @@ def support(r: float) -> float:
 
 METHOD_NAMES = ("ipsph", "pf", "dfsph")  # simulation.method; ipsph.methods.METHODS implements each
 BACKEND_NAMES = ("cpu", "cuda")  # simulation.backend; ipsph.backends.BACKENDS implements each
+BOUNDARY_MODELS = ("akinci-volume", "akinci-surface")  # simulation.boundary_model; ipsph.boundary.MODELS
 PRECISIONS = ("float64", "float32")  # simulation.precision: the real arrays' type
 
 # A step's timed phases, in report order: timer name -> (short label, what it times). Each method
@@ -271,6 +272,19 @@ PARAMS: tuple[Param, ...] = (
         "standard_viscosity",
         lo=0.0,
         hi=10.0,
+    ),
+    _P(
+        "simulation.boundary_model",
+        "choice",
+        "akinci-volume",
+        "",
+        'How walls are made (docs/method.md section 9, "Where the fluid\'s volume ends"). akinci-volume: '
+        "one layer of Akinci particles 0.6 d inside every obstacle and body, so that the fluid's "
+        "volume meets their surface and a floating body displaces its own volume (Archimedes); "
+        "akinci-surface: the layer 0.1 d behind every surface, where bodies float too high by about "
+        "d/2. Containers are the same in both (their layer 0.1 d outside).",
+        "boundary_model",
+        choices=BOUNDARY_MODELS,
     ),
     _P(
         "simulation.fit_wall_volumes",
@@ -641,7 +655,7 @@ PARAMS: tuple[Param, ...] = (
         "mesh",
     ),
     *_transform("boundary"),
-    # -- [[boundary]] motion and rigid bodies (ipsph/motion.py, ipsph/rigid.py; method.md section 9) ----
+    # -- [[boundary]] motion and rigid bodies (ipsph/motion.py, ipsph/boundary/rigid.py; method.md section 9) ----
     _P(
         "boundary.motion.type",
         "choice",

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from .backends import Backend, get_backend
-from .boundary import Boundary
+from .boundary import model_of
 from .errors import ConfigError, NumericalFailure
 from .methods import METHODS
 from .methods.base import StepReport
@@ -126,7 +126,7 @@ def sample_scene(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray, list
         xs.append(x)
         vs.append(np.tile(np.asarray(spec.velocity, dtype=np.float64), (len(x), 1)))
     fluid_x, fluid_v = np.concatenate(xs), np.concatenate(vs)
-    walls = [sampling.boundary_positions(spec, r) for spec in scene.boundaries]
+    walls = [model_of(scene).samples(spec, r) for spec in scene.boundaries]
     boundary_x = np.concatenate([np.zeros((0, 3))] + walls)
     notes = [n for spec in (*scene.fluids, *scene.boundaries) for n in sampling.mesh_notes(spec)]
     if len(scene.boundaries) and len(fluid_x):
@@ -134,7 +134,7 @@ def sample_scene(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray, list
             fluid_x, boundary_x, sampling.default_overlap_distance(r), boundaries=scene.boundaries, radius=r
         )
         if any(spec.dynamic for spec in scene.boundaries):  # a wider gap around rigid bodies (rigid.BODY_GAP_D)
-            from .rigid import body_gap_mask
+            from .boundary.rigid import body_gap_mask
 
             kept &= body_gap_mask(fluid_x, scene, walls, r)
             removed = int(len(fluid_x) - kept.sum())
@@ -151,17 +151,18 @@ def sample_scene(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray, list
     return np.ascontiguousarray(fluid_x), np.ascontiguousarray(fluid_v), np.ascontiguousarray(boundary_x), notes
 
 
-def _wall_groups(scene: Scene, n_walls: int) -> np.ndarray | None:
-    """Per wall particle, which moving wall it belongs to (rigid.boundary_groups; None: all static)."""
+def _wall_groups(scene: Scene, n_walls: int) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """Per wall particle, which moving wall it belongs to (rigid.boundary_groups) and how deep its
+    layer lies behind its surface; (None, None) when every wall is static."""
     if not any(b.moving for b in scene.boundaries):
-        return None
-    from .rigid import boundary_groups
-    from .sampling import boundary_positions
+        return None, None
+    from .boundary.rigid import boundary_groups
 
-    counts = [len(boundary_positions(spec, scene.particle_radius)) for spec in scene.boundaries]
+    walls, r = model_of(scene), scene.particle_radius
+    counts = [len(walls.samples(spec, r)) for spec in scene.boundaries]
     if sum(counts) != n_walls:
         raise ValueError(f"{n_walls} wall particles given, the scene's walls sample {sum(counts)}")
-    return boundary_groups(scene, counts)
+    return boundary_groups(scene, counts), walls.depths(scene.boundaries, counts, r)
 
 
 def _host(array_of, doc: str) -> property:
@@ -204,11 +205,13 @@ class Simulation:
         from .sampling import rest_lattice
 
         lattice = rest_lattice(scene, boundary_x) if scene.fit_wall_volumes else None
-        groups = _wall_groups(scene, len(boundary_x))
-        self.boundary = Boundary(boundary_x, self.support, scene.density0, lattice, self.spacing, groups)
-        self.walls = None  # moving walls and rigid bodies (ipsph.rigid)
+        groups, depth = _wall_groups(scene, len(boundary_x))
+        self.boundary = model_of(scene).particles(
+            boundary_x, self.support, scene.density0, lattice, self.spacing, groups, depth
+        )
+        self.walls = None  # moving walls and rigid bodies (ipsph.boundary.rigid)
         if groups is not None:
-            from .rigid import WallDriver
+            from .boundary.rigid import WallDriver
 
             self.walls = WallDriver(scene, self.boundary, self.support, mass)
         self.search = self.be.neighbour_search(self.support, self.boundary)

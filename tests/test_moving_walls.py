@@ -10,7 +10,7 @@ import pytest
 
 from ipsph.model import Keyframe, MotionSpec
 from ipsph.motion import Motion
-from ipsph.sampling import BOX_WALL_OFFSET_FACTOR
+from ipsph.boundary import MODELS
 from ipsph.simulation import Simulation
 
 from test_cli_errors import assert_refused, cube, scene_file, write_obj
@@ -138,9 +138,9 @@ def test_piston_raises_the_level_by_swept_volume_over_free_surface_and_nothing_p
     h_a = _level(sim.positions)
     sim.advance_to(T_HOLD + T_MOVE + T_SETTLE, on_step)
     h_b = _level(sim.positions)
-    # it did move: the piston's particles sit BOX_WALL_OFFSET_FACTOR d inside its box (an obstacle's
-    # walls are sampled behind its surface, method.md section 1)
-    face = FACE0 + BOX_WALL_OFFSET_FACTOR * D_SPACING
+    # it did move: the piston's particles sit the wall model's depth inside its box (an obstacle's
+    # walls are sampled behind its surface, method.md section 9)
+    face = FACE0 + MODELS["akinci-volume"].obstacle_depth_d * D_SPACING
     assert b.x[b.groups == 2][:, 0].min() == pytest.approx(face - STROKE, abs=1e-9)
     expected = STROKE * h_a / (FACE0 - STROKE - D_SPACING)
     assert h_b - h_a == pytest.approx(expected, rel=LEVEL_RISE_TOLERANCE), (h_a, h_b, expected)

@@ -151,7 +151,7 @@ class Method:
         be, n = self.be, self.state.n
         return be.mean(dens.err), max(be.max(dens.rho) / self.fluid.rho0 - 1.0, 0.0) if n else 0.0
 
-    # -- moving walls (ipsph.rigid; all three no-ops with static walls) -------------------------
+    # -- moving walls (ipsph.boundary.rigid; all three no-ops with static walls) -------------------------
     def move_walls(self, dt: float) -> None:
         """Moving walls to where they are at the end of this step (before the neighbour search that sees them)."""
         if self.walls is not None:

@@ -41,7 +41,8 @@ _VISCOSITY_METHODS = {
 
 # Unsupported keys worth a reason in the warning (anything else is listed bare).
 _NOTES = {
-    "boundaryHandlingMethod": "ipsph always uses Akinci et al. 2012 boundary particles",
+    "boundaryHandlingMethod": "every value maps to simulation.boundary_model = akinci-volume: Akinci particles "
+    "placed so that the fluid's volume meets the surface, what its volume and density maps aim at",
     "numberOfStepsPerRenderUpdate": "GUI only",
     "particleAttributes": "ipsph writes output.fields",
     "kernel": "ipsph uses the cubic spline",
@@ -514,7 +515,7 @@ class _Importer:
         wall = self.bool_(b.get("isWall", False), f"{label}.isWall")
         invert = self.bool_(b.get("mapInvert", False), f"{label}.mapInvert")
         entry: dict = {"name": f"body{i}", "mesh": f, "role": "container" if wall or invert else "obstacle"}
-        if dynamic:  # a two-way coupled rigid body (ipsph.rigid) of SPlisHSPlasH's density (default 1000)
+        if dynamic:  # a two-way coupled rigid body (ipsph.boundary.rigid) of SPlisHSPlasH's density (default 1000)
             if wall or invert:
                 raise self.fail(
                     f"{label}.isDynamic",
