@@ -185,7 +185,7 @@ class WallDriver:
                 self.kinematic.append((grp, spec.name, Motion(spec.motion, pivot)))
             self.force[grp] = (np.zeros(3), np.zeros(3))
         self._fb = np.zeros((boundary.n, 3))
-        self._predicted = None  # the forces this step's move integrated, until its reaction
+        self._predicted = None  # the forces the last move integrated (the prediction of the next reaction)
         self.surface_cache: dict = {}  # name -> the wall's surface at its placement (io.bodies)
         self.place(0.0)
 
@@ -217,7 +217,7 @@ class WallDriver:
             self._predicted = {body.group: (body.force.copy(), body.torque.copy()) for body in self.bodies}
         self.place(self.t + dt)
 
-    def reaction(self, x, lists, dt: float, lam=None, k=()) -> None:
+    def reaction(self, x, lists, dt: float, lam=None, k=(), after_move: bool = False) -> None:
         """The fluid's force and torque on every moving wall in this step (module docstring)."""
         coeff = np.zeros(len(x))
         if lam is not None:
@@ -233,7 +233,7 @@ class WallDriver:
             f = self._fb[sel]
             centre = self._centre(grp)
             self.force[grp] = (f.sum(axis=0), np.cross(b.x[sel] - centre, f).sum(axis=0))
-        predicted, self._predicted = self._predicted, None
+        predicted = self._predicted if after_move else None
         for body in self.bodies:
             body.force, body.torque = self.force[body.group]
             if predicted is not None:  # the move of this step used the last reaction: correct it

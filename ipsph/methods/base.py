@@ -162,9 +162,11 @@ class Method:
         if self.boundary.moving:
             self.be.wall_rate(x, self.boundary, self.lists, self.fluid.h, dens)
 
-    def wall_reaction(self, dt: float, lam=None, k=()) -> None:
+    def wall_reaction(self, dt: float, lam=None, k=(), after_move: bool = False) -> None:
         """The fluid's force and torque on the moving walls from what this step's pressure parts
-        applied: the PF multipliers `lam` and the DFSPH-type stiffness totals `k` (rigid.WallDriver)."""
+        applied: the PF multipliers `lam` and the DFSPH-type stiffness totals `k` (rigid.WallDriver).
+        `after_move`: the walls moved earlier in this step (PF, IPSPH), with the last reaction as the
+        prediction of this one; the bodies' velocities then take the difference."""
         if self.walls is not None:
             be = self.be
             nl = self.lists  # the wall lists on the host (a device backend's are device arrays)
@@ -175,6 +177,7 @@ class Method:
                 dt,
                 None if lam is None else be.to_host(lam),
                 tuple(be.to_host(a) for a in k),
+                after_move,
             )
 
     @property

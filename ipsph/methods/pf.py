@@ -145,5 +145,5 @@ class PF(ProjectiveMethod):
             self.velocities(dt, x_old)
             rep.divergence_error = dt * be.mean_positive(d.drho) / self.fluid.rho0
         be.pf_pressure(st.pressure, st.pd_lambda, self.fluid.rho0, dt)  # p = -rho0 Lam / dt^2 (method.md 3)
-        self.wall_reaction(dt, lam=st.pd_lambda)
+        self.wall_reaction(dt, lam=st.pd_lambda, after_move=True)
         return self.end(dt, d.dens)
