@@ -133,8 +133,8 @@ def sample_scene(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray, list
         kept, removed = sampling.remove_overlaps(
             fluid_x, boundary_x, sampling.default_overlap_distance(r), boundaries=scene.boundaries, radius=r
         )
-        if any(spec.dynamic for spec in scene.boundaries):  # a wider gap around rigid bodies (rigid.BODY_GAP_D)
-            from .boundary.rigid import body_gap_mask
+        if any(spec.dynamic for spec in scene.boundaries):  # a wider gap around bodies (BODY_GAP_D)
+            from .boundary.sampling import body_gap_mask
 
             kept &= body_gap_mask(fluid_x, scene, walls, r)
             removed = int(len(fluid_x) - kept.sum())

@@ -11,6 +11,7 @@
     ipsph bench --table1                         # issue 5: the paper's Table 1 on pipelines/*.toml
     ipsph bench --figure4 fig4 --end-time 1.5     # issue 5: Figure 4, IPSPH beside PF, and their errors
     ipsph bench --sweep                          # issue 21: a 2-worker sweep against the same 4 runs in a row
+    ipsph bench --buoyancy --methods ipsph       # floating cubes against Archimedes (method.md section 9)
 
 Every simulation runs in its own worker process (peak RSS per method) with the same thread count
 (NUMBA_NUM_THREADS for ours, OMP_NUM_THREADS for SPlisHSPlasH), in the order
@@ -31,7 +32,7 @@ import time
 from pathlib import Path
 
 from ..errors import ConfigError
-from ..params import BACKEND_NAMES, METHOD_NAMES, PRECISIONS
+from ..params import BACKEND_NAMES, BOUNDARY_MODELS, METHOD_NAMES, PRECISIONS
 from . import report
 from .scenes import (
     DEFAULT_SCENES,
@@ -166,6 +167,19 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         action="store_true",
         help="issue 19: per-step cost of a kinematic wall and of a rigid body against the same scene "
         "with the wall static (interleaved turns, --repeats, --threads; same-run ratios)",
+    )
+    p.add_argument(
+        "--buoyancy",
+        action="store_true",
+        help="a cube of 300, 500, 700 and 900 kg/m^3, 6 and 12 spacings across, floating in a tank: its "
+        "submerged volume fraction against Archimedes, per --methods and --buoyancy-models",
+    )
+    p.add_argument(
+        "--buoyancy-models",
+        nargs="+",
+        choices=BOUNDARY_MODELS,
+        default=[BOUNDARY_MODELS[0]],
+        help="wall models for --buoyancy (simulation.boundary_model; default: %(default)s)",
     )
     p.add_argument(
         "--first-frame",
@@ -552,6 +566,11 @@ def main(args) -> int:
         from .figure4 import figure4, print_summary
 
         print_summary(figure4(args.figure4, args.end_time, args.threads, args.set))
+        return 0
+    if args.buoyancy:
+        from .buoyancy import run as float_cubes
+
+        float_cubes(args.methods, (300.0, 500.0, 700.0, 900.0), (6, 12), args.buoyancy_models)
         return 0
     info = machine_info()
     out: dict = {

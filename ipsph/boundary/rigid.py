@@ -38,11 +38,6 @@ from ..motion import Motion, quat_axis_angle, quat_matrix, quat_mul
 # rests with its surface within the gap of the floor's (the issue's d/4 bound); with the 0.1 d layers
 # of an earlier model, a particle distance of d was the same rule for a gap of 0.8 d.
 CONTACT_GAP_D = 0.2
-# Fluid starts at least this many spacings d from a rigid body's particles (other walls: 1 d). The
-# full-mass lattice against an Akinci wall reads up to 1.145 rho0 (method.md section 1): against a
-# static wall that is the corner pop; against a body it launched a floating crate out of the water at
-# t = 0. A gap of 1.5 d starts the fluid next to the body slightly under-dense instead.
-BODY_GAP_D = 1.5
 CONTACT_STEPS = 4.0  # contact stiffness: omega_c = 1 / (CONTACT_STEPS dt), stable explicit springs
 CONTACT_DAMPING = 1.0  # damping ratio of the contact spring (critical: no bounce)
 CONTACT_FRICTION = 0.5  # Coulomb friction coefficient capping the contact's viscous tangential damping
@@ -378,17 +373,6 @@ def _quat_of(r: np.ndarray) -> np.ndarray:
     y = math.copysign(math.sqrt(max(0.0, 1.0 - r[0, 0] + r[1, 1] - r[2, 2])) / 2.0, r[0, 2] - r[2, 0])
     z = math.copysign(math.sqrt(max(0.0, 1.0 - r[0, 0] - r[1, 1] + r[2, 2])) / 2.0, r[1, 0] - r[0, 1])
     return np.array([w, x, y, z])
-
-
-def body_gap_mask(fluid_x: np.ndarray, scene: Scene, walls: list[np.ndarray], r: float) -> np.ndarray:
-    """True for the fluid particles at least BODY_GAP_D d from every rigid body's wall particles
-    (`walls`: the sampled particles of each scene boundary, in order)."""
-    from ..point_kernels import nearest_distance
-
-    body = [w for spec, w in zip(scene.boundaries, walls) if spec.dynamic]
-    gap = BODY_GAP_D * 2.0 * r
-    pts = np.ascontiguousarray(np.concatenate(body))
-    return nearest_distance(np.ascontiguousarray(fluid_x), pts, gap) >= gap
 
 
 def boundary_groups(scene: Scene, counts: list[int]) -> np.ndarray | None:
