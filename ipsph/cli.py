@@ -10,7 +10,7 @@ import os
 import sys
 from pathlib import Path
 
-from . import __version__
+from ._version import __version__
 from .errors import EXIT_INTERRUPTED, IpsphError
 from .params import BACKEND_NAMES, METHOD_NAMES, PRECISIONS, RENDER_MODES, RENDER_VIEWS
 

@@ -33,7 +33,7 @@ import numpy as np
 
 from .errors import ConfigError
 from .model import EmitterSpec, Role, Scene
-from .params import spacing, support
+from .params import BYTES_PER_PARTICLE, spacing, support
 
 
 def _unit(v) -> np.ndarray:
@@ -149,8 +149,6 @@ def check_capacity(scene: Scene, n_fluid: int, limit: int) -> int:
     for i, n in enumerate(nozzles(scene)):
         total += n.layers * n.per_layer
         if total > limit:
-            from .preflight import BYTES_PER_PARTICLE
-
             raise ConfigError(
                 f"emitter[{i}] '{n.spec.name}' would emit {n.layers * n.per_layer:,} particles ({n.per_layer} per "
                 f"layer, {n.layers} layers from t = {n.start:g} to {n.end:g} s): with the rest the run needs "

@@ -35,6 +35,8 @@ def support(r: float) -> float:
     return SUPPORT_RADII * r
 
 
+BYTES_PER_PARTICLE = 1024  # the solver's memory budget per fluid particle (docs/performance.md)
+
 METHOD_NAMES = ("ipsph", "pf", "dfsph")  # simulation.method; ipsph.methods.METHODS implements each
 BACKEND_NAMES = ("cpu", "cuda")  # simulation.backend; ipsph.backends.BACKENDS implements each
 PRECISIONS = ("float64", "float32")  # simulation.precision: the real arrays' type

@@ -13,9 +13,8 @@ import numpy as np
 from . import sampling
 from .errors import ConfigError
 from .model import Scene
-from .params import spacing
+from .params import BYTES_PER_PARTICLE, spacing
 
-BYTES_PER_PARTICLE = 1024  # the solver's budget per fluid particle (docs/performance.md)
 RENDER_BYTES_PER_PIXEL = 112  # render process peak: static layers, depth/owner/shade buffers, frame and
 # PNG rows, VTK's and llvmpipe's framebuffers (measured 100 B/px at 3840x2160)
 

@@ -28,6 +28,7 @@ from .methods import METHODS
 from .methods.base import StepReport
 from .model import Role, Scene
 from .params import spacing, support
+from .neighbours import search_for
 from .particles import ParticleState
 
 
@@ -211,7 +212,7 @@ class Simulation:
             from .rigid import WallDriver
 
             self.walls = WallDriver(scene, self.boundary, self.support, mass)
-        self.search = self.be.neighbour_search(self.support, self.boundary)
+        self.search = search_for(self.be, self.support, self.boundary)
         self.method = METHODS[scene.method](scene, self.state, self.boundary, self.search, self.be, mass)
         self.method.walls = self.walls
         self.time = 0.0

@@ -178,7 +178,7 @@ def from_polydata(poly) -> Surface:
 
 
 def read_vtp(path) -> Surface:
-    from .render import read_surface
+    from .io.vtu import read_surface
 
     poly = read_surface(path)
     if poly is None:
@@ -269,7 +269,7 @@ def surface_output(out_dir, *, fmt: str = "vtp", overrides=(), threads: int | No
     from .io.provenance import read_run_json
     from .io.pvd import PvdSeries
     from .io.vtu import read_particles
-    from .render.output import _frame_index
+    from .io.pvd import frame_index
     from .scene import surface_config
 
     log = log or (lambda msg: print(msg, file=sys.stderr))
@@ -294,7 +294,7 @@ def surface_output(out_dir, *, fmt: str = "vtp", overrides=(), threads: int | No
     written, failed, skipped = [], {}, 0
     listed = _time.perf_counter()
     for k, (t, f) in enumerate(series.frames):
-        i = _frame_index(f, k)
+        i = frame_index(f, k)
         target = out / out_io.surface_file(i, fmt)
         vtp = out / out_io.surface_file(i, "vtp")
         if target.is_file():

@@ -43,7 +43,7 @@ def test_the_signature_list_holds_every_kernel_a_method_runs(method):
     assert out.returncode == 0, out.stderr
     used = {(m, q, tuple(s)) for m, q, s in json.loads(out.stdout.strip().splitlines()[-1])}
     listed = {(m, q, tuple(s)) for m, q, s in jit_warm.load_signatures()[method]}
-    assert used - listed == set(), "run `python -m ipsph.jit_warm --write`"
+    assert used - listed == set(), "run `python -m ipsph.jit_record`"
     assert listed - used == set(), "the list names kernels this method no longer runs"
 
 

@@ -1,5 +1,5 @@
 """The CUDA backend: particle arrays on an NVIDIA GPU, the passes of `cuda_passes` (the bodies of
-`bodies` as device functions), the neighbour search of `cuda_neighbours`, fixed-order reductions.
+`bodies` as device functions), fixed-order reductions (its neighbour search: `ipsph.neighbours.cuda`).
 
     be = get_backend("cuda", precision="float32", device=0)
 
@@ -324,12 +324,6 @@ class CUDABackend(Backend):
             min_nbrs,
             warm,
         )
-
-    # -- neighbour search ---------------------------------------------------------------------------
-    def neighbour_search(self, support, boundary):
-        from .cuda_neighbours import CUDANeighbourSearch
-
-        return CUDANeighbourSearch(support, boundary, self)
 
     def synchronize(self):
         _cuda.cuda.synchronize()

@@ -459,7 +459,7 @@ class Reducer:
         return -1 if first >= x.shape[0] else first
 
     def bounds(self, x) -> tuple[np.ndarray, np.ndarray]:
-        """(lo, hi) of the points, NaN in both if any coordinate is not finite (cpu_neighbours.bounds)."""
+        """(lo, hi) of the points, NaN in both if any coordinate is not finite (neighbours.cpu.bounds)."""
         self._stage1(_partial_bounds, x, self.part)
         lo = self._fold(0, 3, 2)
         hi_bad = self._fold(3, 7, 1)

@@ -1,4 +1,4 @@
-"""Neighbour search: uniform cell grid, counting sort by cell, fixed-stride neighbour lists.
+"""The neighbour search's driver: uniform cell grid, counting sort by cell, fixed-stride neighbour lists.
 
 Particles are binned into cells of H/4 x H x H (H the kernel support), sorted by cell with a
 stable counting sort (so the state arrays can be reordered for memory locality), and every
@@ -20,11 +20,11 @@ more than K neighbours the build reports it and the caller grows K and rebuilds.
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
 
-from .backends.cpu_neighbours import (
+from ..errors import NumericalFailure
+from .cpu import (
     append_lower,
     bounds,
     cell_ids,
@@ -35,7 +35,7 @@ from .backends.cpu_neighbours import (
     near_cells,
     _wall_candidate_pass,
 )
-from .errors import NumericalFailure
+from .rows import grown_stride
 
 
 # Cell size per axis, in units of the support H. Short cells along x (the axis along which a
@@ -297,5 +297,5 @@ class NeighbourSearch:
             if most_f <= self.k_fluid and most_b <= self.k_boundary:
                 return
             # grow the stride (rounded up to a multiple of 16) and rebuild; rare
-            self.k_fluid = max(self.k_fluid, int(math.ceil(most_f * 1.25 / 16) * 16))
-            self.k_boundary = max(self.k_boundary, int(math.ceil(most_b * 1.25 / 16) * 16))
+            self.k_fluid = grown_stride(self.k_fluid, most_f)
+            self.k_boundary = grown_stride(self.k_boundary, most_b)
