@@ -316,7 +316,10 @@ class Simulation:
         self.steps += 1
         emitted = removed = 0
         if self.flow is not None:  # emit, remove: the count changes here only
-            emitted, removed = self.flow.after_step(self)
+            emitted, removed = self.flow.after_step(self.state, self.be, self.time)
+            if emitted or removed:
+                self.method.resize(self.state.n)
+                self.method.prepare()
         st = self.state
         bad = self._first_unhealthy()
         if bad >= 0:

@@ -226,22 +226,6 @@ def write_surface(path, s: Surface, fmt: str = "vtp", time: float | None = None)
     return os.path.getsize(path)
 
 
-def container_bounds(boundaries) -> list[float] | None:
-    """[xmin, xmax, ymin, ymax, zmin, zmax] around the container walls (m), or None without one."""
-    from .model import Role
-    from .sampling import boundary_surface
-
-    boxes = [
-        np.asarray(boundary_surface(b).bounds, dtype=float).reshape(3, 2)
-        for b in boundaries
-        if b.role == Role.CONTAINER
-    ]
-    if not boxes:
-        return None
-    lo, hi = np.min([b[:, 0] for b in boxes], axis=0), np.max([b[:, 1] for b in boxes], axis=0)
-    return [float(v) for pair in zip(lo, hi) for v in pair]
-
-
 def container_bounds_of(scene_dict: dict) -> list[float] | None:
     """container_bounds of a stored scene's box containers (run.json without surface.clip_bounds)."""
     boxes = [

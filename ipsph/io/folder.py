@@ -134,7 +134,7 @@ class RunFolder:
         self.renderer = self._configure_renderer(renderer) if renderer is not None else None
         self.surfacer = surfacer  # surfaces/*.vtp beside the solver (ipsph.surface_worker)
         if surfacer is not None:
-            from ..surface import container_bounds
+            from ..containers import container_bounds
 
             clip = container_bounds(scene.boundaries)
             surfacer.configure(out, scene.particle_radius, scene.density0, scene.surface, clip)
