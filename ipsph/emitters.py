@@ -34,7 +34,7 @@ import numpy as np
 from .containers import container_boxes
 from .errors import ConfigError
 from .model import EmitterSpec, Scene
-from .params import BYTES_PER_PARTICLE, spacing, support
+from .params import BYTES_PER_PARTICLE, spacing
 
 
 def _unit(v) -> np.ndarray:
@@ -192,7 +192,7 @@ def wall_notes(scene: Scene, boundary_x: np.ndarray) -> list[str]:
     from .point_kernels import nearest_distance
 
     notes = []
-    d = spacing(scene.particle_radius)
+    d = scene.spacing
     for i, nz in enumerate(nozzles(scene)):
         pts = np.concatenate([nz.layer_points(0.0), nz.layer_points(d)])
         near = float(nearest_distance(pts, boundary_x, d).min()) if len(boundary_x) else math.inf
@@ -235,9 +235,9 @@ class Flow:
         check_placement(scene)
         self.scene = scene
         self.nozzles = nozzles(scene)
-        self.d = spacing(scene.particle_radius)
-        self.h = support(scene.particle_radius)
-        self.mass = scene.density0 * self.d**3
+        self.d = scene.spacing
+        self.h = scene.support
+        self.mass = scene.fluid_mass
         self.sinks = [(np.asarray(s.box_min), np.asarray(s.box_max)) for s in scene.sinks]
         dom = scene.domain
         self.domain = None if dom.min is None else (np.asarray(dom.min), np.asarray(dom.max))

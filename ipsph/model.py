@@ -10,11 +10,12 @@ it (`D(path)`).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, make_dataclass
 from enum import StrEnum
 from pathlib import Path
 
-from .params import BOUNDARY_ROLES, METHOD_NAMES, PARAMS
+from .params import BOUNDARY_ROLES, COURANT, METHOD_NAMES, PARAMS, VISCOUS_STEP, spacing, support
 from .params import default as D
 
 Vec3 = tuple[float, float, float]
@@ -217,3 +218,43 @@ class Scene:
     surface: SurfaceConfig = SurfaceConfig()
     source: Path | None = None  # the scene file, if any
     warnings: tuple[str, ...] = field(default=(), compare=False)
+
+    # -- what follows from the particle radius r, derived here and nowhere else (method.md section 1)
+    @property
+    def spacing(self) -> float:
+        """The lattice spacing d = 2 r."""
+        return spacing(self.particle_radius)
+
+    @property
+    def support(self) -> float:
+        """The kernel support H = 4 r."""
+        return support(self.particle_radius)
+
+    @property
+    def fluid_mass(self) -> float:
+        """Every fluid particle carries the water of its lattice cell, rho0 d^3."""
+        return self.density0 * self.spacing**3
+
+    @property
+    def dt_max(self) -> float:
+        """time_step.dt_max, or its auto value (5 ms * r / 0.025 m)."""
+        return self.time_step.resolved_dt_max(self.particle_radius)
+
+    @property
+    def viscous_dt(self) -> float:
+        """H^2 / (VISCOUS_STEP nu): the explicit Standard viscosity's step limit (inf without it)."""
+        nu = self.standard_viscosity
+        h = self.support
+        return h * h / (VISCOUS_STEP * nu) if nu > 0.0 else math.inf
+
+    def cfl_step(self, vmax: float) -> tuple[float, bool]:
+        """The CFL rule: dt = clamp(min(cfl_factor COURANT d / vmax, viscous_dt), dt_min, dt_max), and
+        whether the raw value fell below dt_min."""
+        ts = self.time_step
+        raw = ts.cfl_factor * COURANT * self.spacing / vmax if vmax > 0 else math.inf
+        raw = min(raw, self.viscous_dt)
+        return min(max(raw, ts.dt_min), self.dt_max), raw < ts.dt_min
+
+    def rest_dt(self) -> float:
+        """The CFL rule's step at rest: dt_max, at most the viscous limit (never below dt_min)."""
+        return min(self.dt_max, max(self.viscous_dt, self.time_step.dt_min))

@@ -25,6 +25,14 @@ SPACING_RADII = 2.0  # d = 2 r
 SUPPORT_RADII = 4.0  # H = 4 r
 
 
+# The CFL rule (method.md section 1): dt = cfl_factor * COURANT * d / max|v|.
+COURANT = 0.4
+# Explicit Standard viscosity is stable while nu dt lambda_max <= 2, lambda_max the largest
+# eigenvalue of its operator: 59.6 / H^2 on the lattice (power iteration, method.md section 1).
+# The step keeps half of that margin: dt <= H^2 / (VISCOUS_STEP nu).
+VISCOUS_STEP = 60.0
+
+
 def spacing(r: float) -> float:
     """The lattice spacing d = 2 r."""
     return SPACING_RADII * r

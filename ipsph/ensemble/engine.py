@@ -28,13 +28,13 @@ import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..errors import EXIT_INTERRUPTED, InputError, OutputError
+from ..errors import EXIT_ERROR, EXIT_INTERRUPTED, InputError, OutputError
 from ..io import check_writable
 from . import member as mem
 from . import records
 from .spec import Sweep, load_sweep, validate
 
-EXIT_MEMBERS_FAILED = 1
+EXIT_MEMBERS_FAILED = EXIT_ERROR
 DEFAULT_DASHBOARD = "127.0.0.1:8787"
 
 
