@@ -1,5 +1,5 @@
 """What a side process costs the default scene's `ipsph run`: runs without and with it, alternating
-in fresh processes (`ipsph bench --render-overhead`, `--surface-overhead`), median of pair ratios."""
+in fresh processes (`ipsph bench --surface-overhead`, `python -m benchmarks render-overhead`), median of pair ratios."""
 
 from __future__ import annotations
 

@@ -314,7 +314,7 @@ def run_sweep(sweep_file: str | Path, opts: SweepOptions) -> tuple[int, list[dic
     out_abs = out.resolve()
     varied = [k for k, _ in sweep.grid] + [k for k, _ in sweep.zipped]
     params = {r["name"]: r["parameters"] for r in recs}
-    timings = {"validate": time.perf_counter() - t_begin}  # seconds per phase (ipsph bench --sweep reads them)
+    timings = {"validate": time.perf_counter() - t_begin}  # seconds per phase (python -m benchmarks sweep reads them)
     info = {
         **sweep.as_dict(),
         "out": str(out_abs),

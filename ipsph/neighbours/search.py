@@ -190,7 +190,7 @@ class NeighbourSearch:
     def _resort_walls(self, x_fluid) -> None:
         """Moving walls: sort the walls into the grid again at their new positions (refitting the
         grid if they left it) and rebuild the per-cell candidates. Every step, so its cost is the
-        price of a moving wall (`ipsph bench --moving`)."""
+        price of a moving wall (`python -m benchmarks moving-walls`)."""
         xb = self.boundary.x
         lo, hi = bounds(xb) if len(xb) else (np.zeros(3), np.zeros(3))
         if not self.grid.contains(lo, hi):
