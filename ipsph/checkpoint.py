@@ -29,9 +29,9 @@ from pathlib import Path
 import numpy as np
 
 from .errors import OutputError
+from .io import CHECKPOINT_FILE  # noqa: F401 - where a run folder keeps it
 from .model import Scene
 
-CHECKPOINT_FILE = "checkpoint.npz"
 FORMAT = 2
 _EXCLUDED = ("output", "render", "name", "source")  # do not change the physics
 

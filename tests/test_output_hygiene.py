@@ -236,7 +236,7 @@ def test_a_run_of_hours_is_announced_and_needs_yes_off_a_terminal(tmp_path, caps
 
 
 def test_progress_lines_reach_a_log_file(tmp_path, capsys, monkeypatch):
-    from ipsph.io import folder
+    from ipsph import run_folder as folder
 
     monkeypatch.setattr(folder, "PROGRESS_EVERY_S", 0.0)  # one line per step instead of every 10 s
     from ipsph.scene import default_scene_path, load_scene
