@@ -40,7 +40,9 @@ class CUDABackend(Backend):
         self.precision = precision
         self.device = device
         self.real = np.dtype(precision)
-        self.reducer = P.Reducer()
+        from .cuda_reduce import Reducer
+
+        self.reducer = Reducer()
         self.NO_PAIRS = self._new((0, 3, 0), self.real)
         self.NO_DISPLACEMENT = self._new((0, 3), self.real)
         self._every_particle = self._new((0,), self.real)
