@@ -203,46 +203,28 @@ class CUDANeighbourSearch(NeighbourSearch):
         self._build(xs, s["start"])
         return perm
 
-    def _build(self, xs, fluid_start):
-        d = self._dev
-        n = xs.shape[0]
-        while True:
-            if (
-                self.lists is None
-                or self.lists.fluid.shape != (n, self.k_fluid)
-                or self.lists.boundary.shape != (n, self.k_boundary)
-            ):
-                self.lists = DeviceNeighbourLists(n, self.k_fluid, self.k_boundary)
-            nl = self.lists
-            launch(
-                _gather_fluid,
-                n,
-                xs,
-                fluid_start,
-                d["origin"],
-                d["inv_cell"],
-                d["dims"],
-                self.h,
-                nl.fluid,
-                nl.fluid_count,
-            )
-            launch(
-                _gather_walls,
-                n,
-                xs,
-                d["xb"],
-                d["start"],
-                d["cand"],
-                d["origin"],
-                d["inv_cell"],
-                d["dims"],
-                self.h,
-                nl.boundary,
-                nl.boundary_count,
-            )
-            most_f = int(self.be.reducer.max(nl.fluid_count)) if n else 0
-            most_b = int(self.be.reducer.max(nl.boundary_count)) if n else 0
-            if most_f <= self.k_fluid and most_b <= self.k_boundary:
-                return
-            self.k_fluid = rows.grown_stride(self.k_fluid, most_f)
-            self.k_boundary = rows.grown_stride(self.k_boundary, most_b)
+    def _new_lists(self, n: int) -> DeviceNeighbourLists:
+        return DeviceNeighbourLists(n, self.k_fluid, self.k_boundary)
+
+    def _gather(self, xs, fluid_start, nl) -> tuple[int, int]:
+        d, n = self._dev, xs.shape[0]
+        launch(
+            _gather_fluid, n, xs, fluid_start, d["origin"], d["inv_cell"], d["dims"], self.h, nl.fluid, nl.fluid_count
+        )
+        launch(
+            _gather_walls,
+            n,
+            xs,
+            d["xb"],
+            d["start"],
+            d["cand"],
+            d["origin"],
+            d["inv_cell"],
+            d["dims"],
+            self.h,
+            nl.boundary,
+            nl.boundary_count,
+        )
+        most_f = int(self.be.reducer.max(nl.fluid_count)) if n else 0
+        most_b = int(self.be.reducer.max(nl.boundary_count)) if n else 0
+        return most_f, most_b

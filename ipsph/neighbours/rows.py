@@ -39,6 +39,20 @@ def cell_of(p0, p1, p2, origin, inv_cell, dims):
 
 
 @njit(inline="always")
+def append(idx, i, n, j, hit, k_max, branch_free):
+    """Row i's next candidate j: kept when `hit`; returns the new count. Branch-free: always store
+    at slot n (the last slot once the row is full), advance only on a hit."""
+    if branch_free:
+        idx[i, min(n, k_max - 1)] = j
+        return n + (1 if hit else 0)
+    if hit:
+        if n < k_max:
+            idx[i, n] = j
+        return n + 1
+    return n
+
+
+@njit(inline="always")
 def fluid_row(i, xq, xs, cell_start, origin, inv_cell, dims, radius, same_set, upper, branch_free, idx):
     """The indices j of points xs with |xq_i - xs_j| < radius into idx[i, :K], ascending; returns
     their true count (rows past the stride K are cut: the caller grows K and rebuilds).
@@ -83,13 +97,7 @@ def fluid_row(i, xq, xs, cell_start, origin, inv_cell, dims, radius, same_set, u
                 hit = d0 * d0 + d1 * d1 + d2 * d2 < r2
                 if same_set:
                     hit = hit & (j != i)
-                if branch_free:
-                    idx[i, min(n, k_max - 1)] = j
-                    n += 1 if hit else 0
-                elif hit:
-                    if n < k_max:
-                        idx[i, n] = j
-                    n += 1
+                n = append(idx, i, n, j, hit, k_max, branch_free)
     return n
 
 
@@ -111,14 +119,7 @@ def wall_row(i, xq, xs, start, cand, origin, inv_cell, dims, radius, branch_free
         d0 = xi0 - xs[j, 0]
         d1 = xi1 - xs[j, 1]
         d2 = xi2 - xs[j, 2]
-        hit = d0 * d0 + d1 * d1 + d2 * d2 < r2
-        if branch_free:
-            idx[i, min(n, k_max - 1)] = j
-            n += 1 if hit else 0
-        elif hit:
-            if n < k_max:
-                idx[i, n] = j
-            n += 1
+        n = append(idx, i, n, j, d0 * d0 + d1 * d1 + d2 * d2 < r2, k_max, branch_free)
     return n
 
 

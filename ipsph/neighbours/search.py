@@ -266,36 +266,41 @@ class NeighbourSearch:
         return perm
 
     def _build(self, xs, fluid_start):
-        g = self.grid
-        n = len(xs)
+        """Both lists at the sorted positions `xs`, growing the strides until every row fits."""
+        n = xs.shape[0]
         while True:
-            if (
-                self.lists is None
-                or self.lists.fluid.shape != (n, self.k_fluid)
-                or self.lists.boundary.shape != (n, self.k_boundary)
-            ):
-                self.lists = NeighbourLists(n, self.k_fluid, self.k_boundary)
-            lists = self.lists
-            # fluid pairs are symmetric: gather j > i in parallel, then append each pair to the
-            # lower particle's row serially (cheaper than a full gather: docs/performance.md)
-            gather_neighbours(
-                xs, xs, fluid_start, g.origin, g.inv_cell, g.dims, self.h, True, True, lists.fluid, lists.fluid_count
-            )
-            most_f = append_lower(lists.fluid, lists.fluid_count)
-            most_b = gather_walls(
-                xs,
-                self.boundary.x,
-                self.wall_start,
-                self.wall_cand,
-                g.origin,
-                g.inv_cell,
-                g.dims,
-                self.h,
-                lists.boundary,
-                lists.boundary_count,
-            )
+            nl = self.lists
+            if nl is None or nl.fluid.shape != (n, self.k_fluid) or nl.boundary.shape != (n, self.k_boundary):
+                self.lists = self._new_lists(n)
+            most_f, most_b = self._gather(xs, fluid_start, self.lists)
             if most_f <= self.k_fluid and most_b <= self.k_boundary:
                 return
-            # grow the stride (rounded up to a multiple of 16) and rebuild; rare
+            # grow the stride and rebuild; rare
             self.k_fluid = grown_stride(self.k_fluid, most_f)
             self.k_boundary = grown_stride(self.k_boundary, most_b)
+
+    def _new_lists(self, n: int) -> NeighbourLists:
+        return NeighbourLists(n, self.k_fluid, self.k_boundary)
+
+    def _gather(self, xs, fluid_start, lists) -> tuple[int, int]:
+        """Fill both lists; returns the longest fluid and wall rows (the true counts)."""
+        g = self.grid
+        # fluid pairs are symmetric: gather j > i in parallel, then append each pair to the
+        # lower particle's row serially (cheaper than a full gather: docs/performance.md)
+        gather_neighbours(
+            xs, xs, fluid_start, g.origin, g.inv_cell, g.dims, self.h, True, True, lists.fluid, lists.fluid_count
+        )
+        most_f = append_lower(lists.fluid, lists.fluid_count)
+        most_b = gather_walls(
+            xs,
+            self.boundary.x,
+            self.wall_start,
+            self.wall_cand,
+            g.origin,
+            g.inv_cell,
+            g.dims,
+            self.h,
+            lists.boundary,
+            lists.boundary_count,
+        )
+        return most_f, most_b
