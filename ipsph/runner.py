@@ -1,7 +1,9 @@
 """`ipsph run`: one simulation writing a ParaView-ready output folder, and losing nothing.
 
 Order of business: check the output folder, the particle budget and the radius against the
-geometry (bad input exits 2 before any large allocation), sample, write the boundary once,
+geometry (bad input exits 2 before any large allocation), sample the scene once (refusing one
+with no fluid left; a refused run leaves no output folder), create the folder, write the
+boundary once,
 then per frame a VTU + the PVD (atomically) + a render (+ a checkpoint every
 output.checkpoint_interval), per step a stats row. SIGINT/SIGTERM finish the current step,
 write a final frame and a checkpoint and exit 130; a numerical failure stops with exit 3, a
@@ -30,7 +32,8 @@ from .run_clock import Interrupted, RunClock, StopOnSignal
 from .run_folder import RunFolder
 from .model import Scene
 from .preflight import check_backend, check_geometry, check_render_size, check_size
-from .simulation import Simulation, sample_scene
+from .sampled import SampledScene, check_sampled, sample
+from .simulation import Simulation
 
 
 @dataclass
@@ -89,11 +92,9 @@ def _checked_run(scene: Scene, opts: RunOptions, clock: RunClock) -> int:
     renderer = None
     if opts.render and scene.render.enabled:
         check_render_size(scene)
-    prepare_output_folder(out, opts.overwrite, opts.resume)  # every check passed: now create/clear
-    if opts.render and scene.render.enabled:  # start it now: it imports VTK while we sample
         from .render.worker import BackgroundRenderer
 
-        renderer = BackgroundRenderer()
+        renderer = BackgroundRenderer()  # start it now: it imports VTK while we sample
     surfacer = None
     wants = scene.output.surface or (scene.render.enabled and opts.render and scene.render.mode == "surface")
     if wants if opts.surface is None else opts.surface:  # start it now: it imports splashsurf while we sample
@@ -105,7 +106,11 @@ def _checked_run(scene: Scene, opts: RunOptions, clock: RunClock) -> int:
     if scene.backend == "cpu":  # cold Numba cache: compile on the other core too
         clock.helper = jit_warm.start(scene.method.value)
     try:
-        return _run(scene, opts, resume, renderer, clock, surfacer)
+        sampled = None
+        if resume is None:
+            sampled = _sample(scene, opts)  # the run's one sampling; refusals that need the particles
+        prepare_output_folder(out, opts.overwrite, opts.resume)  # every check passed: now create/clear
+        return _run(scene, opts, resume, sampled, renderer, clock, surfacer)
     except BaseException:
         for worker in (renderer, surfacer):
             if worker is not None:
@@ -115,7 +120,22 @@ def _checked_run(scene: Scene, opts: RunOptions, clock: RunClock) -> int:
         jit_warm.stop(clock.helper)
 
 
-def _run(scene: Scene, opts: RunOptions, resume, renderer, clock: RunClock, surfacer=None) -> int:
+def _sample(scene: Scene, opts: RunOptions) -> SampledScene:
+    """The scene's particles, sampled once, and the refusals only they can tell (before any output)."""
+    import numba
+
+    if opts.threads:
+        numba.set_num_threads(int(opts.threads))
+    for w in scene.warnings:
+        print(f"ipsph: warning: {w}", file=sys.stderr)
+    sampled = sample(scene)
+    check_sampled(scene, sampled)
+    for note in sampled.notes:
+        print(f"ipsph: note: {note}", file=sys.stderr)
+    return sampled
+
+
+def _run(scene: Scene, opts: RunOptions, resume, sampled, renderer, clock: RunClock, surfacer=None) -> int:
     from .scene import scene_to_dict
 
     out = opts.out_dir
@@ -123,21 +143,13 @@ def _run(scene: Scene, opts: RunOptions, resume, renderer, clock: RunClock, surf
 
     if opts.threads:
         numba.set_num_threads(int(opts.threads))
-    for w in scene.warnings:
-        print(f"ipsph: warning: {w}", file=sys.stderr)
-    t_setup = time.perf_counter()
+    if resume is not None:
+        for w in scene.warnings:
+            print(f"ipsph: warning: {w}", file=sys.stderr)
+    t_setup = time.perf_counter() - (sampled.seconds if sampled is not None else 0.0)
     if resume is None:
-        fluid_x, fluid_v, boundary_x, notes = sample_scene(scene)
-        for note in notes:
-            print(f"ipsph: note: {note}", file=sys.stderr)
-        if len(fluid_x) == 0 and not scene.emitters:
-            from .errors import ConfigError
-
-            raise ConfigError(
-                "the scene has no fluid particles after sampling (check [[fluid]] entries and "
-                "that the fluid lies inside its container)"
-            )
-        sim = Simulation(scene, fluid_x, fluid_v, boundary_x)
+        fluid_x, fluid_v, boundary_x, notes = sampled.fluid_x, sampled.fluid_v, sampled.boundary_x, sampled.notes
+        sim = Simulation(scene, fluid_x, fluid_v, boundary_x, wall_counts=sampled.wall_counts)
         if sim.settle_report:
             st = sim.settle_report
             notes.append(

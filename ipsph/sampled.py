@@ -1,18 +1,67 @@
 """The sampled scene: a Scene's fluid and wall particles, built once per run from its bodies.
 
-`sample_scene` is the one place a run goes from a `Scene` to particles (the sampling itself is
-`ipsph.sampling`'s); `wall_groups` says which moving wall each wall particle belongs to.
+`sample(scene)` is the one place a run goes from a `Scene` to particles (the sampling itself is
+`ipsph.sampling`'s); `ipsph run` samples before it creates its output folder, refuses what
+only the particles show (`check_sampled`), and hands the same `SampledScene` to `Simulation`.
+`sample_scene` is the same as a tuple; `wall_groups` says which moving wall each wall particle
+belongs to.
 """
 
 from __future__ import annotations
 
+import time
+from dataclasses import dataclass, field
+
 import numpy as np
 
+from .errors import ConfigError
 from .model import Scene
 
 
+@dataclass
+class SampledScene:
+    """A scene's particles at t = 0: the fluid (after removing what overlaps a wall or lies
+    outside every container), the walls in [[boundary]] order, and what sampling noticed."""
+
+    fluid_x: np.ndarray
+    fluid_v: np.ndarray
+    boundary_x: np.ndarray
+    notes: list[str]
+    wall_counts: list[int]  # wall particles per [[boundary]] entry, in order
+    fluid_sampled: int = 0  # fluid particles before the overlap removal
+    seconds: float = field(default=0.0, compare=False)
+
+
+def sample(scene: Scene) -> SampledScene:
+    """The scene's particles (see `sample_scene`), with the per-wall counts and timing."""
+    t0 = time.perf_counter()
+    fx, fv, bx, notes, counts, n0 = _sample(scene)
+    return SampledScene(fx, fv, bx, notes, counts, n0, time.perf_counter() - t0)
+
+
+def check_sampled(scene: Scene, s: SampledScene) -> None:
+    """Refuse a scene whose particles cannot run (ConfigError, exit 2): no fluid at all, or all of
+    it outside every container or inside walls (a scene with emitters may start empty)."""
+    if len(s.fluid_x) or scene.emitters:
+        return
+    if s.fluid_sampled:
+        raise ConfigError(
+            f"all {s.fluid_sampled:,} fluid particles lie outside every container or inside a wall, so "
+            f"none is left to simulate: move the [[fluid]] entries inside a container's [[boundary]]"
+        )
+    raise ConfigError(
+        "the scene has no fluid particles after sampling (check [[fluid]] entries and "
+        "that the fluid lies inside its container)"
+    )
+
+
 def sample_scene(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
-    """Fluid positions and velocities, wall particles, and notes on what was removed.
+    """Fluid positions and velocities, wall particles, and notes on what was removed."""
+    return _sample(scene)[:4]
+
+
+def _sample(scene: Scene):
+    """(fluid_x, fluid_v, boundary_x, notes, wall counts, fluid count before removal).
 
     Fluid particles inside an obstacle, outside every container, or closer than d = 2r to a
     wall particle are removed and counted (the lattice would otherwise start inside a wall).
@@ -27,6 +76,7 @@ def sample_scene(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray, list
         xs.append(x)
         vs.append(np.tile(np.asarray(spec.velocity, dtype=np.float64), (len(x), 1)))
     fluid_x, fluid_v = np.concatenate(xs), np.concatenate(vs)
+    n_sampled = len(fluid_x)
     walls = [sampling.boundary_positions(spec, r) for spec in scene.boundaries]
     boundary_x = np.concatenate([np.zeros((0, 3))] + walls)
     notes = [n for spec in (*scene.fluids, *scene.boundaries) for n in sampling.mesh_notes(spec)]
@@ -49,17 +99,22 @@ def sample_scene(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray, list
         from .emitters import wall_notes
 
         notes += wall_notes(scene, boundary_x)
-    return np.ascontiguousarray(fluid_x), np.ascontiguousarray(fluid_v), np.ascontiguousarray(boundary_x), notes
+    fluid_x, fluid_v, boundary_x = (np.ascontiguousarray(a) for a in (fluid_x, fluid_v, boundary_x))
+    return fluid_x, fluid_v, boundary_x, notes, [len(w) for w in walls], n_sampled
 
 
-def wall_groups(scene: Scene, n_walls: int) -> np.ndarray | None:
-    """Per wall particle, which moving wall it belongs to (rigid.boundary_groups; None: all static)."""
+def wall_groups(scene: Scene, n_walls: int, counts: list[int] | None = None) -> np.ndarray | None:
+    """Per wall particle, which moving wall it belongs to (rigid.boundary_groups; None: all
+    static). `counts`: the wall particles per [[boundary]] entry, when the caller sampled them
+    (`SampledScene.wall_counts`); else they are sampled again."""
     if not any(b.moving for b in scene.boundaries):
         return None
     from .rigid import boundary_groups
-    from .sampling import boundary_positions
 
-    counts = [len(boundary_positions(spec, scene.particle_radius)) for spec in scene.boundaries]
+    if counts is None:
+        from .sampling import boundary_positions
+
+        counts = [len(boundary_positions(spec, scene.particle_radius)) for spec in scene.boundaries]
     if sum(counts) != n_walls:
         raise ValueError(f"{n_walls} wall particles given, the scene's walls sample {sum(counts)}")
     return boundary_groups(scene, counts)

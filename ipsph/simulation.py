@@ -29,7 +29,7 @@ from .methods.base import StepReport
 from .model import Role, Scene
 from .neighbours import search_for
 from .particles import ParticleState
-from .sampled import sample_scene, wall_groups
+from .sampled import sample, wall_groups
 from .settle import SETTLE_MAX_STEPS, wants_settle
 from .settle import settle as settle_pass
 
@@ -65,6 +65,7 @@ class Simulation:
         backend: str | Backend | None = None,
         capacity: int | None = None,
         settle: bool = True,
+        wall_counts: list[int] | None = None,
     ):
         self.scene = scene
         backend = scene.backend if backend is None else backend  # simulation.backend, .precision, .device
@@ -84,7 +85,7 @@ class Simulation:
         from .sampling import rest_lattice
 
         lattice = rest_lattice(scene, boundary_x) if scene.fit_wall_volumes else None
-        groups = wall_groups(scene, len(boundary_x))
+        groups = wall_groups(scene, len(boundary_x), wall_counts)
         self.boundary = Boundary(boundary_x, self.support, scene.density0, lattice, self.spacing, groups)
         self.walls = None  # moving walls and rigid bodies (ipsph.rigid)
         if groups is not None:
@@ -124,8 +125,8 @@ class Simulation:
             scene = load_scene(Path(scene), list(overrides))
         elif isinstance(scene, dict):
             scene = scene_from_dict(scene, Path.cwd())
-        fluid_x, fluid_v, boundary_x, _ = sample_scene(scene)
-        return cls(scene, fluid_x, fluid_v, boundary_x)
+        s = sample(scene)
+        return cls(scene, s.fluid_x, s.fluid_v, s.boundary_x, wall_counts=s.wall_counts)
 
     def _domain(self, boundary_x):
         """Fluid leaving the containers' bounds (plus one support radius) has escaped; with a

@@ -53,6 +53,10 @@ def gl():
             "hours of work, no terminal, no --yes",
             ["--set", "simulation.particle_radius=0.002", "--max-particles", "100000000"],
         ),
+        (  # a refusal that needs the sampled particles: the default tank is 1.6 m long
+            "the only fluid lies outside every container",
+            ["--set", "fluid.0.box.min=[2.0, 0.0, 0.0]", "--set", "fluid.0.box.max=[2.4, 0.4, 0.4]"],
+        ),
     ],
 )
 def test_a_refused_run_creates_no_folder(tmp_path, capsys, why, args):
