@@ -132,9 +132,10 @@ class NeighbourSearch:
     """Owns the grid, the cell sort, the walls' per-cell candidates and the lists; `update` sorts
     the fluid and rebuilds the lists.
 
-    The boundary is static: it is sorted into the grid once (and again only if the grid has to
-    grow because fluid left it), in place through `boundary.reorder`. `update` returns the
-    permutation to apply to the fluid, so the caller reorders every per-particle array with it.
+    Static walls are sorted into the grid once (and again only if the grid has to grow because
+    fluid left it), in place through `boundary.reorder`; with moving walls (`boundary.moving`)
+    they are sorted again at every `update` (`_resort_walls`). `update` returns the permutation to
+    apply to the fluid, so the caller reorders every per-particle array with it.
     """
 
     # Cells beyond this many per particle mean the fluid blew apart (a runaway particle).
