@@ -29,7 +29,7 @@ from .methods.base import StepReport
 from .model import Role, Scene
 from .neighbours import search_for
 from .particles import ParticleState
-from .sampled import sample, wall_groups
+from .sampled import sample, sample_scene, wall_groups  # noqa: F401 - sample_scene: part of the Python API here
 from .settle import SETTLE_MAX_STEPS, wants_settle
 from .settle import settle as settle_pass
 
