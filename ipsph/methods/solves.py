@@ -115,6 +115,7 @@ def density_solve(
 def pd_solve(
     be: Backend,
     fl: Fluid,
+    *,
     x,
     x_spare,
     s,
