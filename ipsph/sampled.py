@@ -40,8 +40,10 @@ def sample(scene: Scene) -> SampledScene:
 
 
 def check_sampled(scene: Scene, s: SampledScene) -> None:
-    """Refuse a scene whose particles cannot run (ConfigError, exit 2): no fluid at all, or all of
-    it outside every container or inside walls (a scene with emitters may start empty)."""
+    """Refuse a scene whose particles cannot run (ConfigError, exit 2): rigid bodies that overlap
+    each other, no fluid at all, or all of it outside every container or inside walls (a scene
+    with emitters may start empty)."""
+    _check_bodies_apart(scene, s)
     if len(s.fluid_x) or scene.emitters:
         return
     if s.fluid_sampled:
@@ -53,6 +55,35 @@ def check_sampled(scene: Scene, s: SampledScene) -> None:
         "the scene has no fluid particles after sampling (check [[fluid]] entries and "
         "that the fluid lies inside its container)"
     )
+
+
+def _check_bodies_apart(scene: Scene, s: SampledScene) -> None:
+    """Two rigid bodies must not start inside each other: one body's wall particles (sampled 0.1 d
+    inside its surface) inside the other's surface would push both apart violently at t = 0."""
+    bodies = [k for k, b in enumerate(scene.boundaries) if b.dynamic]
+    if len(bodies) < 2:
+        return
+    from .inside import inside_mesh
+    from .sampling import boundary_surface
+
+    starts = np.concatenate([[0], np.cumsum(s.wall_counts)]).astype(int)
+    surfaces = {k: boundary_surface(scene.boundaries[k]) for k in bodies}
+    for k in bodies:
+        pts = s.boundary_x[starts[k] : starts[k + 1]]
+        lo, hi = pts.min(axis=0), pts.max(axis=0)
+        for j in bodies:
+            if j == k:
+                continue
+            b = np.asarray(surfaces[j].bounds).reshape(3, 2)
+            if np.any(hi < b[:, 0]) or np.any(lo > b[:, 1]):
+                continue  # the boxes around them do not meet
+            n = int(inside_mesh(pts, surfaces[j], scene.spacing).sum())
+            if n:
+                a, o = scene.boundaries[k], scene.boundaries[j]
+                raise ConfigError(
+                    f"boundary[{k}] '{a.name}' and boundary[{j}] '{o.name}' are rigid bodies that overlap at "
+                    f"t = 0 ({n} of '{a.name}''s wall particles lie inside '{o.name}'): move them apart"
+                )
 
 
 def sample_scene(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
