@@ -39,6 +39,18 @@ _VISCOSITY_METHODS = {
 }
 
 
+# SPlisHSPlasH 2.0.0's solver settings, flat in Configuration (later versions: per-method blocks)
+_FLAT_SOLVER_KEYS = (
+    "minIterations",
+    "maxIterations",
+    "maxError",
+    "maxIterationsV",
+    "maxErrorV",
+    "enableDivergenceSolver",
+    "stiffness",
+)
+
+
 def scene_dict(path: Path, where: str | None = None) -> tuple[dict, tuple[str, ...]]:
     """Convert a SPlisHSPlasH scene file into ipsph's TOML dict form (unvalidated) and the
     import warnings (at most one string). Mesh paths stay as written: relative to the file."""
@@ -126,13 +138,7 @@ class _Importer(Reader, BodyReader):
             "density0",
             "viscosity",
             "viscosityMethod",
-            "minIterations",
-            "maxIterations",
-            "maxError",
-            "maxIterationsV",
-            "maxErrorV",
-            "enableDivergenceSolver",
-            "stiffness",
+            *_FLAT_SOLVER_KEYS,
         }
         for key, value in c.items():
             if key not in handled:
@@ -198,19 +204,7 @@ class _Importer(Reader, BodyReader):
         for key, block in (("DFSPH", dfsph), ("Projective Fluids", pf)):
             if not isinstance(block, dict):
                 raise self.fail(f"Configuration.{key}", "expected an object")
-        flat = {
-            k: c[k]
-            for k in (
-                "minIterations",
-                "maxIterations",
-                "maxError",
-                "maxIterationsV",
-                "maxErrorV",
-                "enableDivergenceSolver",
-                "stiffness",
-            )
-            if k in c
-        }
+        flat = {k: c[k] for k in _FLAT_SOLVER_KEYS if k in c}
         if flat:
             if "stiffness" in flat:  # 2.0.0: WCSPH and PF share the key
                 pf = {**pf, "stiffness": flat.pop("stiffness")}
