@@ -7,7 +7,7 @@ import statistics
 import tempfile
 from pathlib import Path
 
-TARGET = 0.25  # a side process may slow the default scene's run by at most 25 % (issues 4, 20)
+TARGET = 0.25  # a side process (renders, surfaces) may slow the default scene's run by at most 25 %
 
 
 def default_run(args: list[str], out: Path, threads: int, timeout: float, check) -> dict:

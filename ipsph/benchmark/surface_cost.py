@@ -1,4 +1,4 @@
-"""What surfaces cost (issue 20).
+"""What surfaces cost.
 
     ipsph bench --surface-sizes 1000000 --repeats 3   # seconds per reconstruction of a jittered N lattice
     ipsph bench --surface-overhead --repeats 5        # the default scene's `ipsph run`, with and without --surface
@@ -27,7 +27,7 @@ from pathlib import Path
 
 from . import overhead
 
-SECONDS_TARGET = 10.0  # a 1M-particle frame in at most 10 s on 2 cores (issue 20)
+SECONDS_TARGET = 10.0  # a 1M-particle frame in at most 10 s on 2 cores
 
 _ONE = r"""
 import json, resource, sys, time
