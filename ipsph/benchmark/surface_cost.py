@@ -11,7 +11,7 @@ load on the machine while it ran.
 
 Overhead: `ipsph run` of the built-in default scene in fresh processes, alternating the plain run and
 the run with --surface (the surface process beside the solver), both with their usual renders, R times
-each; medians of wall time and their ratio, the figure the issue's "surfaces add at most 25 %" is about.
+each; medians of wall time and their ratio, the figure the target "surfaces add at most 25 %" is about.
 A pair during which other processes kept more than --max-load cores busy is shown as loaded and left
 out of the medians.
 """
