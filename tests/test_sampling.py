@@ -151,9 +151,13 @@ def test_fluid_mesh_lattice_is_centred_and_deterministic(tmp_path):
     meshes.box_mesh((0.0, 0.0, 0.0), (0.5, 0.3, 0.2)).save(path)
     spec = model.FluidSpec("b", "mesh", mesh=path, transform=model.Transform(translate=(1.0, 2.0, 3.0)))
     a = sampling.fluid_positions(spec, R, cache=False)
-    b = sampling.fluid_positions(spec, R, cache=False)
-    np.testing.assert_array_equal(a, b)
     assert len(a) == 10 * 6 * 4  # count · d³ = 0.03 m³, the box volume
+    # the lattice itself, built here independently: d/2 from each face of the translated box
+    d = 2 * R
+    axes = [lo + d / 2 + d * np.arange(n) for lo, n in zip((1.0, 2.0, 3.0), (10, 6, 4))]
+    want = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    order = lambda p: p[np.lexsort(np.round(p / d).T[::-1])]  # noqa: E731 - by lattice index
+    np.testing.assert_allclose(order(a), order(want), atol=1e-12)
     np.testing.assert_allclose(a.min(axis=0), (1.025, 2.025, 3.025), atol=1e-12)
     np.testing.assert_allclose(a.mean(axis=0), (1.25, 2.15, 3.1), atol=1e-12)
 

@@ -6,7 +6,7 @@ effective mass rho0 * Psi_b, where the volume
     Psi_b = 1 / (W(0) + sum_{b'} W(x_b - x_b'))          [AIA*12, eq. 4]
 
 is computed once. No method branches on the boundary: a scene without walls simply has zero
-boundary particles. Walls may move rigidly (kinematic walls, rigid bodies: ipsph.rigid): each
+boundary particles. Walls may move rigidly (kinematic walls, rigid bodies: ipsph.boundary.rigid): each
 moving wall is its own `group`, whose volumes are summed over its own particles only, so they
 are invariant under its motion (a wall sliding past another does not change either's volumes);
 its particles carry velocities `v` (zero for static walls), which the density rate sees.

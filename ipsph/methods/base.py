@@ -16,7 +16,6 @@ from types import SimpleNamespace
 from ..backends import Backend
 from ..boundary import Boundary
 from ..model import Scene
-from ..params import support
 from ..particles import ParticleState
 
 PAIR_CACHE_BYTES = 24  # per neighbour-list slot: mf grad W_ij, three float64
@@ -103,7 +102,7 @@ class Method:
         self.search = search
         self.be = be
         self.cfg = scene.solver
-        self.fluid = Fluid(float(mf), support(scene.particle_radius), float(scene.density0))
+        self.fluid = Fluid(float(mf), scene.support, float(scene.density0))
         self.g = be.asarray(scene.gravity)
         self.pairs = PairCache(be, self.cfg.pair_cache_mb)
         state.zeros("pressure")  # output field, follows reordering
