@@ -22,11 +22,11 @@ from ..point_kernels import nearest_distance, poisson_filter
 from ..sampling import cached_samples, check_radius, mesh_path, prepared_mesh, rigid_part, scaled_box, shape_of
 
 BOUNDARY_SPACING_FACTOR = 1.5  # box-grid spacing <= 1.5 r (method.md section 1)
-# Fluid starts at least this many spacings d from a rigid body's particles (other walls: 1 d). The
-# full-mass lattice against an Akinci wall reads up to 1.145 rho0 (method.md section 1): against a
-# static wall that is the corner pop; against a body it launched a floating crate out of the water at
-# t = 0. A gap of 1.5 d starts the fluid next to the body slightly under-dense instead.
-BODY_GAP_D = 1.5
+# Fluid starts at least this many spacings d from a rigid body's particles (other walls: 1 d): where
+# it rests against a single Akinci layer (models.REST_DISTANCE_D, 1.1 d). Closer, the full-mass lattice
+# reads up to 1.145 rho0 and the pop launched a floating crate out of the water at t = 0; farther (an
+# earlier 1.5 d), the water rushed into the gap and pressed particles into a body's edges.
+BODY_GAP_D = 1.1
 POISSON_RADIUS_FACTOR = 1.0  # general meshes: samples at least r apart, none missing beyond r
 CANDIDATE_SPACING_FACTOR = 0.2  # candidate density r/5 (ecosystem.md)
 FEATURE_ANGLE_DEG = 30.0
