@@ -37,7 +37,7 @@ from ipsph.errors import ConfigError
 if TYPE_CHECKING:
     import pyvista as pv
 
-SAMPLER_VERSION = "ipsph-sampling-4"
+SAMPLER_VERSION = "ipsph-sampling-5"
 # Fluid particles closer than d = 2r to a wall particle are removed: the first lattice layer sits
 # d from the walls (method.md: particles at r from a wall make DFSPH/IPSPH blow up). The factor
 # slightly below 1 keeps a layer that is exactly d away despite rounding.

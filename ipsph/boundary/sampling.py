@@ -58,26 +58,7 @@ def _box_surface_grid(lo: np.ndarray, hi: np.ndarray, max_spacing: float, offset
         block(inner[0], ends[1], ax[2]),  # y faces, x-interior
         block(inner[0], inner[1], ends[2]),  # z faces, x- and y-interior
     ]
-    grid = np.concatenate(parts)
-    if offset < 0.0:  # an obstacle's: its edges and corners as deep as its faces
-        grid = _round_edges(grid, lo, hi, flat, -offset)
-    return np.ascontiguousarray(grid)
-
-
-def _round_edges(grid: np.ndarray, lo: np.ndarray, hi: np.ndarray, flat: np.ndarray, depth: float) -> np.ndarray:
-    """Move the nodes on the shrunk box's edges and corners outwards, so that each lies `depth` from
-    the box's own edge or corner, as a face node lies `depth` from its face. On the shrunk box they
-    lie sqrt(k) depth from it (k = 2 on an edge, 3 at a corner), and fluid pressed into a corner came
-    0.04 d inside the box (a 500 kg/m^3 cube at rest, 6 d across)."""
-    out = grid.copy()
-    at = (np.isclose(grid, lo, rtol=0.0, atol=1e-12) | np.isclose(grid, hi, rtol=0.0, atol=1e-12)) & ~flat
-    k = at.sum(axis=1)
-    for m in (2, 3):
-        sel = k == m
-        shift = depth * (1.0 - 1.0 / np.sqrt(m))
-        sign = np.where(np.isclose(grid[sel], hi, rtol=0.0, atol=1e-12), 1.0, -1.0)
-        out[sel] += shift * sign * at[sel]
-    return out
+    return np.ascontiguousarray(np.concatenate(parts))
 
 
 def _feature_candidates(mesh, r: float) -> tuple[np.ndarray, np.ndarray]:
