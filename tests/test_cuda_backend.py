@@ -374,5 +374,6 @@ def test_backend_cuda_without_a_gpu_exits_2_naming_what_is_missing(tmp_path):
     assert r.returncode == 2 and line.startswith("ipsph: error:") and "cuda" in line.lower(), r.stderr
     assert any(w in line for w in ("driver", "device", "numba-cuda")), line
     assert not out.exists(), "a refused run must create nothing"
-    r32 = _cli(["run", str(scene), "-o", str(out), "--precision", "float32"], {}, tmp_path)
-    assert r32.returncode == 2 and "float32" in r32.stderr and "cuda" in r32.stderr and not out.exists()
+    r32 = _cli(["run", str(scene), "-o", str(out), "--precision", "float32", "--end-time", "0.02"], {}, tmp_path)
+    assert r32.returncode == 0, r32.stderr  # the CPU backend has float32 too (issue 28)
+    assert json.loads((out / "run.json").read_text())["precision"] == "float32"
