@@ -170,8 +170,8 @@ def hydrostatic_pressure(scene: Scene, fluid_x: np.ndarray, boundary_x: np.ndarr
         return hit
 
     def rows(axis: int) -> np.ndarray:
-        others = [k for k in range(3) if k != axis]
-        return key(np.column_stack([cell[:, k] if k in others else np.zeros(len(y), np.int64) for k in range(3)]))
+        """The row of cells along `axis` each particle is in (its key, with that axis's cell fixed)."""
+        return key(np.column_stack([np.full(len(y), lo[k]) if k == axis else cell[:, k] for k in range(3)]))
 
     # vertical runs: depth, height, standing on walls
     order, run, starts, ends = _runs(y[:, down], rows(down), gap)
