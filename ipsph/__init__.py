@@ -1,6 +1,6 @@
 """ipsph: Incompressible Projective SPH (and the PF and DFSPH references) in Numba."""
 
-__version__ = "0.1.0"
+from ._version import __version__
 
 __all__ = ["__version__", "Simulation", "load_scene", "sweep"]
 

@@ -29,9 +29,9 @@ from pathlib import Path
 import numpy as np
 
 from .errors import OutputError
+from .io import CHECKPOINT_FILE  # noqa: F401 - where a run folder keeps it
 from .model import Scene
 
-CHECKPOINT_FILE = "checkpoint.npz"
 FORMAT = 2
 _EXCLUDED = ("output", "render", "name", "source")  # do not change the physics
 
@@ -76,13 +76,13 @@ class Checkpoint:
 
 def save(path: Path, sim, *, frames: int, last_frame_time: float | None, solver_maxed: int, threads: int) -> None:
     """Write `sim.state_dict()` (between two steps) to `path` atomically (WriteError on failure)."""
-    from . import __version__
+    from ._version import __version__
     from .io import atomic_path
 
     sd = sim.state_dict()
     data = {f"state.{k}": v for k, v in sd["particles"].items()}
     data.update({f"boundary.{k}": v for k, v in sd["boundary"].items()})
-    data.update({f"walls.{k}": v for k, v in sd.get("walls", {}).items()})  # moving walls (ipsph.rigid)
+    data.update({f"walls.{k}": v for k, v in sd.get("walls", {}).items()})  # moving walls (ipsph.boundary.rigid)
     search, clock = sd["search"], sd["clock"]
     if search["grid"] is not None:
         data.update({f"grid.{k}": v for k, v in search["grid"].items()})
@@ -143,7 +143,7 @@ def load(path: Path) -> Checkpoint:
 
 def check_compatible(ck: Checkpoint, scene: Scene) -> None:
     """Refuse a checkpoint written by another ipsph version or for a different scene (exit 2)."""
-    from . import __version__
+    from ._version import __version__
 
     if ck.version != __version__:
         raise OutputError(

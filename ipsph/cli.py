@@ -10,8 +10,8 @@ import os
 import sys
 from pathlib import Path
 
-from . import __version__
-from .errors import EXIT_INTERRUPTED, IpsphError
+from ._version import __version__
+from .errors import EXIT_INPUT, EXIT_INTERRUPTED, IpsphError
 from .params import BACKEND_NAMES, METHOD_NAMES, PRECISIONS, RENDER_MODES, RENDER_VIEWS
 
 # OpenMP threads that finish a parallel loop sleep instead of spinning (unless the user chose):
@@ -281,7 +281,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.command is None:
         parser.print_help()
-        return 2
+        return EXIT_INPUT
     try:
         return _COMMANDS[args.command](args)
     except IpsphError as exc:
@@ -290,7 +290,7 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("\nipsph: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
-    return 2
+    return EXIT_INPUT
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -31,9 +31,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .containers import container_boxes
 from .errors import ConfigError
-from .model import EmitterSpec, Role, Scene
-from .params import spacing, support
+from .model import EmitterSpec, Scene
+from .params import BYTES_PER_PARTICLE, spacing
 
 
 def _unit(v) -> np.ndarray:
@@ -149,8 +150,6 @@ def check_capacity(scene: Scene, n_fluid: int, limit: int) -> int:
     for i, n in enumerate(nozzles(scene)):
         total += n.layers * n.per_layer
         if total > limit:
-            from .preflight import BYTES_PER_PARTICLE
-
             raise ConfigError(
                 f"emitter[{i}] '{n.spec.name}' would emit {n.layers * n.per_layer:,} particles ({n.per_layer} per "
                 f"layer, {n.layers} layers from t = {n.start:g} to {n.end:g} s): with the rest the run needs "
@@ -193,7 +192,7 @@ def wall_notes(scene: Scene, boundary_x: np.ndarray) -> list[str]:
     from .point_kernels import nearest_distance
 
     notes = []
-    d = spacing(scene.particle_radius)
+    d = scene.spacing
     for i, nz in enumerate(nozzles(scene)):
         pts = np.concatenate([nz.layer_points(0.0), nz.layer_points(d)])
         near = float(nearest_distance(pts, boundary_x, d).min()) if len(boundary_x) else math.inf
@@ -205,22 +204,11 @@ def wall_notes(scene: Scene, boundary_x: np.ndarray) -> list[str]:
     return notes
 
 
-def _container_bounds(scene: Scene) -> list[tuple[np.ndarray, np.ndarray]]:
-    from .sampling import boundary_surface
-
-    out = []
-    for b in scene.boundaries:
-        if b.role == Role.CONTAINER:
-            bb = np.asarray(boundary_surface(b).bounds, dtype=np.float64).reshape(3, 2)
-            out.append((bb[:, 0], bb[:, 1]))
-    return out
-
-
 def check_placement(scene: Scene) -> None:
     """Each nozzle's outlet inside a container's bounds or the domain box (ConfigError naming the key)."""
     if not scene.emitters:
         return
-    boxes = _container_bounds(scene)
+    boxes = container_boxes(scene.boundaries)
     dom = scene.domain
     if dom.min is not None:
         boxes.append((np.asarray(dom.min), np.asarray(dom.max)))
@@ -247,9 +235,9 @@ class Flow:
         check_placement(scene)
         self.scene = scene
         self.nozzles = nozzles(scene)
-        self.d = spacing(scene.particle_radius)
-        self.h = support(scene.particle_radius)
-        self.mass = scene.density0 * self.d**3
+        self.d = scene.spacing
+        self.h = scene.support
+        self.mass = scene.fluid_mass
         self.sinks = [(np.asarray(s.box_min), np.asarray(s.box_max)) for s in scene.sinks]
         dom = scene.domain
         self.domain = None if dom.min is None else (np.asarray(dom.min), np.asarray(dom.max))
@@ -267,14 +255,14 @@ class Flow:
         """Particles still to be emitted."""
         return sum((n.layers - k) * n.per_layer for n, k in zip(self.nozzles, self.emitted_layers))
 
-    def after_step(self, sim) -> tuple[int, int]:
-        """Remove, guide, emit at the end of a step; returns (emitted, removed) this step."""
-        st, be = sim.state, sim.be
+    def after_step(self, st, be, t: float) -> tuple[int, int]:
+        """Remove, guide, emit at the end of a step at time t, on the state `st` of backend `be`;
+        returns (emitted, removed) this step. The caller resizes the method when either is not 0."""
         removed = self._remove(st, be)
         x = be.to_host(st.x)
         v = np.array(be.to_host(st.v)) if self.nozzles else None
-        guided = self._guide(sim.time, x, v) if self.nozzles else False
-        new_x, new_v = self._emit(sim.time, x)
+        guided = self._guide(t, x, v) if self.nozzles else False
+        new_x, new_v = self._emit(t, x)
         if guided:
             st.v = be.asarray(v)
         if len(new_x):
@@ -285,9 +273,6 @@ class Flow:
             st.append({"x": new_x, "v": new_v, "m": np.full(k, self.mass), "id": ids})
             self.next_id += k
             self.emitted += k
-        if removed or len(new_x):
-            sim.method.resize(st.n)
-            sim.method.prepare()
         return len(new_x), removed
 
     def _remove(self, st, be) -> int:

@@ -2,19 +2,27 @@
 
 User errors subclass builtins (ConfigError is a ValueError) so library users can catch them
 naturally; the CLI prints `str(exc)` as one line and exits with the class's `exit_code`.
+The exit codes are declared once, here.
 """
+
+EXIT_OK = 0
+EXIT_ERROR = 1  # an error with no code of its own (also: some members of a sweep failed)
+EXIT_INPUT = 2  # bad input, refused before any large allocation or output
+EXIT_NUMERICAL = 3  # the simulation diverged; finished frames kept
+EXIT_WRITE = 4  # a write failed (disk full); earlier frames intact
+EXIT_INTERRUPTED = 130  # SIGINT / SIGTERM: a final frame and a checkpoint were written
 
 
 class IpsphError(Exception):
     """Base of every error ipsph raises on purpose."""
 
-    exit_code = 1
+    exit_code = EXIT_ERROR
 
 
 class InputError(IpsphError, ValueError):
     """Bad input of any kind: reported before any large allocation or output (exit 2)."""
 
-    exit_code = 2
+    exit_code = EXIT_INPUT
 
 
 class ConfigError(InputError):
@@ -32,19 +40,13 @@ class OutputError(InputError):
 class NumericalFailure(IpsphError, RuntimeError):
     """The simulation diverged (NaN/Inf, escaped particles): exit 3, finished frames kept."""
 
-    exit_code = 3
+    exit_code = EXIT_NUMERICAL
 
 
 class WriteError(IpsphError, OSError):
     """Writing a frame failed (disk full, ...): earlier frames stay intact."""
 
-    exit_code = 4
-
-
-EXIT_OK = 0
-EXIT_INPUT = 2
-EXIT_NUMERICAL = 3
-EXIT_INTERRUPTED = 130
+    exit_code = EXIT_WRITE
 
 
 def read_text(path, where: str, what: str = "scene file") -> str:

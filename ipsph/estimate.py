@@ -21,10 +21,9 @@ ASK_ABOVE_S = 3600.0  # and require --yes (when not on a terminal) above this
 
 
 def steps_per_sim_second(scene) -> float:
-    """1 / dt at the fastest fall speed the scene allows (CFL rule, within [dt_min, dt_max])."""
+    """1 / dt at the fastest fall speed the scene allows (the CFL rule, `Scene.cfl_step`)."""
     import numpy as np
 
-    r = scene.particle_radius
     g = float(np.linalg.norm(scene.gravity))
     lows, highs, v0 = [], [], 0.0
     for f in scene.fluids:
@@ -39,9 +38,7 @@ def steps_per_sim_second(scene) -> float:
             lows.append(b[0][1])
     height = max(highs) - min(lows) if highs else 1.0
     v = max(v0 + math.sqrt(2.0 * g * max(height, 0.0)), 1e-6)
-    ts = scene.time_step
-    dt = min(max(ts.cfl_factor * 0.4 * 2.0 * r / v, ts.dt_min), ts.resolved_dt_max(r))
-    return 1.0 / dt
+    return 1.0 / scene.cfl_step(v)[0]
 
 
 def _bounds(spec):

@@ -16,8 +16,12 @@ from numba import njit
 
 _INV_PI = 1.0 / math.pi
 
+# The fastmath flags of every physics kernel (these and the bodies and passes built on them): no
+# nnan/ninf, so NaN checks keep working.
+FASTMATH = {"contract", "arcp", "reassoc"}
 
-@njit(inline="always", fastmath={"contract", "arcp", "reassoc"})
+
+@njit(inline="always", fastmath=FASTMATH)
 def w(r, h):
     """W(r) for a distance r >= 0, branch-free: W = 2c [(1-q)+^3 - 4 (1/2-q)+^3]."""
     q = r / h
@@ -26,7 +30,7 @@ def w(r, h):
     return 16.0 * _INV_PI / (h * h * h) * (a * a * a - 4.0 * b * b * b)
 
 
-@njit(inline="always", fastmath={"contract", "arcp", "reassoc"})
+@njit(inline="always", fastmath=FASTMATH)
 def grad_w_factor(r, h):
     """g(r) with grad W(x) = g(r) * x, for r = |x|; 0 outside the support and at r = 0.
 

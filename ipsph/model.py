@@ -4,23 +4,73 @@
 nothing downstream parses files. Units are SI, y is up. Solver tolerances are in
 percent, as in SPlisHSPlasH (`density_error_pct = 0.05` means 0.05 %). Every default, unit,
 range and description is declared once, in `ipsph.params.PARAMS`: the config tables below are
-generated from it (`_section`), and the scene's and bodies' own fields read their defaults from
-it (`D(path)`).
+generated from it (`_section`), and so are the Scene and the [[fluid]], [[boundary]], motion,
+[[emitter]] and [[sink]] specs (`_declared`: a field per key that lands on them, in PARAMS'
+order, with its type and default). Only what no key declares is written here: the shared `Body`
+(a shape, its box or mesh, its `Transform`), keyframes, the Scene's tables and where it came from.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, make_dataclass
 from enum import StrEnum
 from pathlib import Path
 
-from .params import BOUNDARY_ROLES, METHOD_NAMES, PARAMS
+from .params import BOUNDARY_ROLES, COURANT, METHOD_NAMES, PARAMS, VISCOUS_STEP, spacing, support
 from .params import default as D
 
 Vec3 = tuple[float, float, float]
 
 Method = StrEnum("Method", {name.upper(): name for name in METHOD_NAMES})  # simulation.method
 Role = StrEnum("Role", {name.upper(): name for name in BOUNDARY_ROLES})  # boundary.role
+
+
+_TYPES = {
+    "float": float,
+    "int": int,
+    "bool": bool,
+    "choice": str,
+    "str": str,
+    "path": Path,
+    "vec3": tuple[float, float, float],
+    "range2": tuple[float, float],
+    "fields": tuple[str, ...],
+}
+
+_ENUMS = {"simulation.method": Method, "boundary.role": Role}  # choices held as StrEnum members
+
+
+def _declared(table: str, skip=(), nested: dict | None = None) -> list:
+    """A dataclass field per parameter of `table` that lands directly on it (its target has no
+    dot, or is `<nested>.<key>`: then the nested dataclass, once, where its first key stands), in
+    the order params.PARAMS declares them; names, types and defaults as declared there. Fields
+    without a default (required keys, except those in `skip`) come first, as dataclasses need."""
+    nested = nested or {}
+    required, rest, seen = [], [], set()
+    for p in PARAMS:
+        head, _, key = p.path.partition(".")
+        if head != table or p.target in skip:
+            continue
+        owner, dot, attr = p.target.partition(".")
+        if dot:
+            if owner in nested and owner not in seen:
+                seen.add(owner)
+                rest.append((owner, nested[owner], field(default=nested[owner]())))
+            continue
+        kind = _ENUMS.get(p.path) or _TYPES[p.kind]
+        if p.required or p.default is None and not p.optional:
+            required.append((p.target, kind))
+        else:
+            default = _ENUMS[p.path](p.default) if p.path in _ENUMS else p.default
+            rest.append((p.target, kind | None if p.optional else kind, field(default=default)))
+    return required + rest
+
+
+def _spec(name: str, doc: str, fields: list, bases: tuple = (), **namespace) -> type:
+    return make_dataclass(
+        name, fields, bases=bases, frozen=True, namespace={"__doc__": doc, "__module__": __name__, **namespace}
+    )
 
 
 @dataclass(frozen=True)
@@ -31,6 +81,9 @@ class Transform:
     scale: Vec3 = D("fluid.scale")
     rotate_axis: Vec3 = D("fluid.rotate_axis")
     rotate_deg: float = D("fluid.rotate_deg")
+
+
+_BODY_TARGETS = ("name", "box_min", "box_max", "mesh")  # Body's own fields (and `transform.*`)
 
 
 @dataclass(frozen=True)
@@ -45,12 +98,12 @@ class Body:
     transform: Transform = Transform()
 
 
-@dataclass(frozen=True)
-class FluidSpec(Body):
-    """A fluid body ([[fluid]]): the box is filled with a lattice, a closed mesh's inside too."""
-
-    velocity: Vec3 = D("fluid.velocity")
-    allow_open_mesh: bool = D("fluid.allow_open_mesh")
+FluidSpec = _spec(
+    "FluidSpec",
+    "A fluid body ([[fluid]]): the box is filled with a lattice, a closed mesh's inside too.",
+    _declared("fluid", skip=_BODY_TARGETS),
+    (Body,),
+)
 
 
 @dataclass(frozen=True)
@@ -63,33 +116,23 @@ class Keyframe:
     rotate_deg: float = 0.0
 
 
-@dataclass(frozen=True)
-class MotionSpec:
-    """[boundary.motion]: a prescribed (kinematic) motion, evaluated by ipsph.motion."""
+MotionSpec = _spec(
+    "MotionSpec",
+    "[boundary.motion]: a prescribed (kinematic) motion, evaluated by ipsph.motion.",
+    [
+        (
+            p.target.partition(".")[2],
+            _TYPES.get(p.kind, tuple[Keyframe, ...]) | None if p.optional else _TYPES.get(p.kind, tuple[Keyframe, ...]),
+            field(default=p.default),
+        )
+        for p in PARAMS
+        if p.path.startswith("boundary.motion.")
+    ],
+)
 
-    type: str = D("boundary.motion.type")
-    velocity: Vec3 = D("boundary.motion.velocity")
-    angular_velocity: Vec3 = D("boundary.motion.angular_velocity")  # deg/s
-    pivot: Vec3 | None = D("boundary.motion.pivot")
-    axis: Vec3 = D("boundary.motion.axis")
-    amplitude: float = D("boundary.motion.amplitude")
-    angle_amplitude: float = D("boundary.motion.angle_amplitude")  # deg
-    period: float | None = D("boundary.motion.period")
-    phase_deg: float = D("boundary.motion.phase_deg")
-    keyframes: tuple[Keyframe, ...] = ()
 
-
-@dataclass(frozen=True)
-class BoundarySpec(Body):
-    """A wall ([[boundary]]): a container (fluid inside) or an obstacle (fluid around); static,
-    moving as prescribed (`motion`), or a dynamic rigid body (`density` or `mass` set)."""
-
-    role: Role = Role(D("boundary.role"))
-    motion: MotionSpec = MotionSpec()
-    density: float | None = D("boundary.density")
-    mass: float | None = D("boundary.mass")
-    velocity: Vec3 = D("boundary.velocity")
-    angular_velocity: Vec3 = D("boundary.angular_velocity")  # deg/s
+class _Wall:
+    """What a wall's fields say about it."""
 
     @property
     def dynamic(self) -> bool:
@@ -102,44 +145,26 @@ class BoundarySpec(Body):
         return self.dynamic or self.motion.type != "static"
 
 
-@dataclass(frozen=True)
-class EmitterSpec:
+BoundarySpec = _spec(
+    "BoundarySpec",
+    """A wall ([[boundary]]): a container (fluid inside) or an obstacle (fluid around); static,
+    moving as prescribed (`motion`), or a dynamic rigid body (`density` or `mass` set).""",
+    _declared("boundary", skip=_BODY_TARGETS, nested={"motion": MotionSpec}),
+    (Body, _Wall),
+)
+
+
+EmitterSpec = _spec(
+    "EmitterSpec",
     """A nozzle ([[emitter]]): fluid layers leave `position` along `direction` at `velocity`
-    from start_time to end_time (ipsph.emitters). Sizes in metres (width/height or radius)."""
-
-    name: str
-    position: Vec3
-    shape: str = D("emitter.shape")
-    direction: Vec3 = D("emitter.direction")
-    height_axis: Vec3 | None = None
-    width: float | None = None
-    height: float | None = None
-    radius: float | None = None
-    velocity: float = D("emitter.velocity")
-    start_time: float = D("emitter.start_time")
-    end_time: float | None = None
+    from start_time to end_time (ipsph.emitters). Sizes in metres (width/height or radius).""",
+    _declared("emitter"),
+)
 
 
-@dataclass(frozen=True)
-class SinkSpec:
-    """An outflow box ([[sink]]): fluid inside it is removed after every step."""
-
-    name: str
-    box_min: Vec3
-    box_max: Vec3
-
-
-_TYPES = {
-    "float": float,
-    "int": int,
-    "bool": bool,
-    "choice": str,
-    "str": str,
-    "path": Path,
-    "vec3": tuple[float, float, float],
-    "range2": tuple[float, float],
-    "fields": tuple[str, ...],
-}
+SinkSpec = _spec(
+    "SinkSpec", "An outflow box ([[sink]]): fluid inside it is removed after every step.", _declared("sink")
+)
 
 
 def _section(name: str, table: str, doc: str, nested: dict | None = None, **methods) -> type:
@@ -190,30 +215,67 @@ SurfaceConfig = _section(
 )
 
 
-@dataclass(frozen=True)
-class Scene:
-    name: str
-    method: Method = Method(D("simulation.method"))
-    backend: str = D("simulation.backend")
-    precision: str = D("simulation.precision")
-    device: int = D("simulation.device")
-    particle_radius: float = D("simulation.particle_radius")
-    density0: float = D("simulation.density0")
-    gravity: Vec3 = D("simulation.gravity")
-    end_time: float = D("simulation.end_time")
-    viscosity: float = D("simulation.viscosity")
-    standard_viscosity: float = D("simulation.standard_viscosity")
-    fit_wall_volumes: bool = D("simulation.fit_wall_volumes")
-    settle: str = D("simulation.settle")
-    time_step: TimeStepConfig = TimeStepConfig()
-    solver: SolverConfig = SolverConfig()
-    fluids: tuple[FluidSpec, ...] = ()
-    boundaries: tuple[BoundarySpec, ...] = ()
-    emitters: tuple[EmitterSpec, ...] = ()
-    sinks: tuple[SinkSpec, ...] = ()
-    domain: DomainConfig = DomainConfig()
-    output: OutputConfig = OutputConfig()
-    render: RenderConfig = RenderConfig()
-    surface: SurfaceConfig = SurfaceConfig()
-    source: Path | None = None  # the scene file, if any
-    warnings: tuple[str, ...] = field(default=(), compare=False)
+class _Derived:
+    """What follows from a scene's particle radius r, derived here and nowhere else (method.md section 1)."""
+
+    @property
+    def spacing(self) -> float:
+        """The lattice spacing d = 2 r."""
+        return spacing(self.particle_radius)
+
+    @property
+    def support(self) -> float:
+        """The kernel support H = 4 r."""
+        return support(self.particle_radius)
+
+    @property
+    def fluid_mass(self) -> float:
+        """Every fluid particle carries the water of its lattice cell, rho0 d^3."""
+        return self.density0 * self.spacing**3
+
+    @property
+    def dt_max(self) -> float:
+        """time_step.dt_max, or its auto value (5 ms * r / 0.025 m)."""
+        return self.time_step.resolved_dt_max(self.particle_radius)
+
+    @property
+    def viscous_dt(self) -> float:
+        """H^2 / (VISCOUS_STEP nu): the explicit Standard viscosity's step limit (inf without it)."""
+        nu = self.standard_viscosity
+        h = self.support
+        return h * h / (VISCOUS_STEP * nu) if nu > 0.0 else math.inf
+
+    def cfl_step(self, vmax: float) -> tuple[float, bool]:
+        """The CFL rule: dt = clamp(min(cfl_factor COURANT d / vmax, viscous_dt), dt_min, dt_max), and
+        whether the raw value fell below dt_min."""
+        ts = self.time_step
+        raw = ts.cfl_factor * COURANT * self.spacing / vmax if vmax > 0 else math.inf
+        raw = min(raw, self.viscous_dt)
+        return min(max(raw, ts.dt_min), self.dt_max), raw < ts.dt_min
+
+    def rest_dt(self) -> float:
+        """The CFL rule's step at rest: dt_max, at most the viscous limit (never below dt_min)."""
+        return min(self.dt_max, max(self.viscous_dt, self.time_step.dt_min))
+
+
+Scene = _spec(
+    "Scene",
+    "A resolved scene: [simulation]'s keys, the tables, the bodies, emitters and sinks, where it was read from.",
+    [("name", str)]
+    + _declared("simulation")
+    + [
+        ("time_step", TimeStepConfig, field(default=TimeStepConfig())),
+        ("solver", SolverConfig, field(default=SolverConfig())),
+        ("fluids", tuple[FluidSpec, ...], field(default=())),
+        ("boundaries", tuple[BoundarySpec, ...], field(default=())),
+        ("emitters", tuple[EmitterSpec, ...], field(default=())),
+        ("sinks", tuple[SinkSpec, ...], field(default=())),
+        ("domain", DomainConfig, field(default=DomainConfig())),
+        ("output", OutputConfig, field(default=OutputConfig())),
+        ("render", RenderConfig, field(default=RenderConfig())),
+        ("surface", SurfaceConfig, field(default=SurfaceConfig())),
+        ("source", Path | None, field(default=None)),  # the scene file, if any
+        ("warnings", tuple[str, ...], field(default=(), compare=False)),
+    ],
+    (_Derived,),
+)

@@ -14,7 +14,7 @@ at t = 0 is the identity:
 Velocities are the time derivative of x(t) by a central difference (step VELOCITY_DT), accurate
 to O(VELOCITY_DT^2) for every motion type with one code path.
 
-Quaternions are (w, x, y, z) arrays (shared with the rigid bodies, ipsph.rigid).
+Quaternions are (w, x, y, z) arrays (shared with the rigid bodies, ipsph.boundary.rigid).
 """
 
 from __future__ import annotations

@@ -13,9 +13,8 @@ import numpy as np
 from . import sampling
 from .errors import ConfigError
 from .model import Scene
-from .params import spacing
+from .params import BYTES_PER_PARTICLE
 
-BYTES_PER_PARTICLE = 1024  # the solver's budget per fluid particle (docs/performance.md)
 RENDER_BYTES_PER_PIXEL = 112  # render process peak: static layers, depth/owner/shade buffers, frame and
 # PNG rows, VTK's and llvmpipe's framebuffers (measured 100 B/px at 3840x2160)
 
@@ -78,7 +77,7 @@ def check_fluid_count(fluids, radius: float, max_particles: int | None) -> int:
 
 def check_geometry(scene: Scene) -> None:
     """Refuse a particle radius too large for a fluid body: fewer than 2 particles across it (exit 2)."""
-    d = spacing(scene.particle_radius)
+    d = scene.spacing
     for i, spec in enumerate(scene.fluids):
         ext = _fluid_extent(spec)
         if ext is None:

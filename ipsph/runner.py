@@ -1,7 +1,9 @@
 """`ipsph run`: one simulation writing a ParaView-ready output folder, and losing nothing.
 
 Order of business: check the output folder, the particle budget and the radius against the
-geometry (bad input exits 2 before any large allocation), sample, write the boundary once,
+geometry (bad input exits 2 before any large allocation), sample the scene once (refusing one
+with no fluid left; a refused run leaves no output folder), create the folder, write the
+boundary once,
 then per frame a VTU + the PVD (atomically) + a render (+ a checkpoint every
 output.checkpoint_interval), per step a stats row. SIGINT/SIGTERM finish the current step,
 write a final frame and a checkpoint and exit 130; a numerical failure stops with exit 3, a
@@ -13,7 +15,6 @@ from __future__ import annotations
 
 import math
 import os
-import signal
 import sys
 import time
 from dataclasses import dataclass
@@ -26,17 +27,15 @@ from . import io as out_io
 from . import paraview
 from .errors import EXIT_INTERRUPTED, EXIT_OK, IpsphError, NumericalFailure, OutputError
 from .io import provenance
-from .io.folder import RunFolder, check_output_folder, prepare_output_folder
+from .io.prepare import check_output_folder, prepare_output_folder
+from .run_clock import Interrupted, RunClock, StopOnSignal
+from .run_folder import RunFolder
 from .model import Scene
 from .preflight import check_backend, check_geometry, check_render_size, check_size
-from .simulation import Simulation, sample_scene
+from .sampled import SampledScene, check_sampled, sample
+from .simulation import Simulation
 
 
-class Interrupted(Exception):
-    """SIGINT / SIGTERM arrived; the run stops after the current step."""
-
-
-@dataclass
 @dataclass
 class RunOptions:
     out_dir: Path
@@ -49,78 +48,6 @@ class RunOptions:
     yes: bool = False  # run even when the estimate says hours and no one is at a terminal
     started: float | None = None  # time.perf_counter() when the process started (the CLI: its imports count)
     surface: bool | None = None  # None: the scene's output.surface (or render.mode = "surface")
-
-
-class StopOnSignal:
-    """SIGINT / SIGTERM while inside: remember the signal (the run stops after the current step)."""
-
-    def __init__(self):
-        self.signal = None
-
-    def __enter__(self):
-        self._old = {s: signal.signal(s, self._note) for s in (signal.SIGINT, signal.SIGTERM)}
-        return self
-
-    def _note(self, signum, _frame):
-        self.signal = signum
-
-    def __exit__(self, *exc):
-        for s, h in self._old.items():
-            signal.signal(s, h)
-        return False
-
-
-class RunClock:
-    """Where a run's wall time goes: Numba's compilation (its "numba:compile" events: compiling,
-    not loading from the cache) counted apart from the phase it happens in."""
-
-    def __init__(self, begin: float | None = None):
-        from numba.core import event
-
-        self.begin = time.perf_counter() if begin is None else begin
-        self.loop_begin = None
-        self.compile_before_loop = 0.0
-        self.helper = None  # the jit_warm process of a cold start
-        self._event, self._timer = event, event.TimingListener()
-        event.register("numba:compile", self._timer)
-
-    @property
-    def compile_seconds(self) -> float:
-        return self._timer.duration if self._timer.done else 0.0
-
-    def start_loop(self) -> None:
-        self.loop_begin = time.perf_counter()
-        self.compile_before_loop = self.compile_seconds
-
-    def close(self) -> None:
-        self._event.unregister("numba:compile", self._timer)
-
-    def after_first_step(self, on_step):
-        """`on_step`, stopping the compile helper (jit_warm) once the first step has run: every
-        kernel of the step is compiled or loaded by then, and the stepping gets both cores."""
-
-        def wrapped(s):
-            if self.helper is not None:
-                from . import jit_warm
-
-                jit_warm.stop(self.helper)
-                self.helper = None
-            on_step(s)
-
-        return wrapped
-
-    def split(self, loop_seconds: float, render_wait: float) -> dict:
-        """total = setup + compile + stepping + waiting for renders (seconds)."""
-        total = time.perf_counter() - self.begin
-        before = (self.loop_begin or self.begin) - self.begin
-        compile_loop = self.compile_seconds - self.compile_before_loop
-        return {
-            "total": total,
-            "setup": max(before - self.compile_before_loop, 0.0),
-            "compile": self.compile_seconds,
-            "stepping": max(loop_seconds - compile_loop - render_wait, 0.0),
-            "renders": render_wait,
-        }
 
 
 def run(scene: Scene, opts: RunOptions) -> int:
@@ -165,11 +92,9 @@ def _checked_run(scene: Scene, opts: RunOptions, clock: RunClock) -> int:
     renderer = None
     if opts.render and scene.render.enabled:
         check_render_size(scene)
-    prepare_output_folder(out, opts.overwrite, opts.resume)  # every check passed: now create/clear
-    if opts.render and scene.render.enabled:  # start it now: it imports VTK while we sample
         from .render.worker import BackgroundRenderer
 
-        renderer = BackgroundRenderer()
+        renderer = BackgroundRenderer()  # start it now: it imports VTK while we sample
     surfacer = None
     wants = scene.output.surface or (scene.render.enabled and opts.render and scene.render.mode == "surface")
     if wants if opts.surface is None else opts.surface:  # start it now: it imports splashsurf while we sample
@@ -181,7 +106,11 @@ def _checked_run(scene: Scene, opts: RunOptions, clock: RunClock) -> int:
     if scene.backend == "cpu":  # cold Numba cache: compile on the other core too
         clock.helper = jit_warm.start(scene.method.value)
     try:
-        return _run(scene, opts, resume, renderer, clock, surfacer)
+        sampled = None
+        if resume is None:
+            sampled = _sample(scene, opts)  # the run's one sampling; refusals that need the particles
+        prepare_output_folder(out, opts.overwrite, opts.resume)  # every check passed: now create/clear
+        return _run(scene, opts, resume, sampled, renderer, clock, surfacer)
     except BaseException:
         for worker in (renderer, surfacer):
             if worker is not None:
@@ -191,7 +120,22 @@ def _checked_run(scene: Scene, opts: RunOptions, clock: RunClock) -> int:
         jit_warm.stop(clock.helper)
 
 
-def _run(scene: Scene, opts: RunOptions, resume, renderer, clock: RunClock, surfacer=None) -> int:
+def _sample(scene: Scene, opts: RunOptions) -> SampledScene:
+    """The scene's particles, sampled once, and the refusals only they can tell (before any output)."""
+    import numba
+
+    if opts.threads:
+        numba.set_num_threads(int(opts.threads))
+    for w in scene.warnings:
+        print(f"ipsph: warning: {w}", file=sys.stderr)
+    sampled = sample(scene)
+    check_sampled(scene, sampled)
+    for note in sampled.notes:
+        print(f"ipsph: note: {note}", file=sys.stderr)
+    return sampled
+
+
+def _run(scene: Scene, opts: RunOptions, resume, sampled, renderer, clock: RunClock, surfacer=None) -> int:
     from .scene import scene_to_dict
 
     out = opts.out_dir
@@ -199,21 +143,13 @@ def _run(scene: Scene, opts: RunOptions, resume, renderer, clock: RunClock, surf
 
     if opts.threads:
         numba.set_num_threads(int(opts.threads))
-    for w in scene.warnings:
-        print(f"ipsph: warning: {w}", file=sys.stderr)
-    t_setup = time.perf_counter()
+    if resume is not None:
+        for w in scene.warnings:
+            print(f"ipsph: warning: {w}", file=sys.stderr)
+    t_setup = time.perf_counter() - (sampled.seconds if sampled is not None else 0.0)
     if resume is None:
-        fluid_x, fluid_v, boundary_x, notes = sample_scene(scene)
-        for note in notes:
-            print(f"ipsph: note: {note}", file=sys.stderr)
-        if len(fluid_x) == 0 and not scene.emitters:
-            from .errors import ConfigError
-
-            raise ConfigError(
-                "the scene has no fluid particles after sampling (check [[fluid]] entries and "
-                "that the fluid lies inside its container)"
-            )
-        sim = Simulation(scene, fluid_x, fluid_v, boundary_x)
+        fluid_x, fluid_v, boundary_x, notes = sampled.fluid_x, sampled.fluid_v, sampled.boundary_x, sampled.notes
+        sim = Simulation(scene, fluid_x, fluid_v, boundary_x, wall_counts=sampled.wall_counts)
         if sim.settle_report:
             st = sim.settle_report
             notes.append(
@@ -341,7 +277,7 @@ def _run(scene: Scene, opts: RunOptions, resume, renderer, clock: RunClock, surf
 
 def _load_resume(out: Path, scene: Scene) -> ckpt.Checkpoint:
     """The checkpoint of the run in `out`, checked against `scene` (exit 2 when it does not fit)."""
-    ck = ckpt.load(out / ckpt.CHECKPOINT_FILE)
+    ck = ckpt.load(out / out_io.CHECKPOINT_FILE)
     ckpt.check_compatible(ck, scene)
     if ck.time >= scene.end_time * (1.0 - 1e-12):
         raise OutputError(

@@ -37,15 +37,7 @@ from ipsph.errors import ConfigError
 if TYPE_CHECKING:
     import pyvista as pv
 
-SAMPLER_VERSION = "ipsph-sampling-3"
-BOUNDARY_SPACING_FACTOR = 1.5  # box-grid spacing <= 1.5 r (method.md section 1)
-# Box walls: the grid sits this fraction of d = 2r behind the wall surface (outside a container,
-# inside an obstacle). With Akinci's volumes a layer on the surface makes the first fluid layer,
-# d away, read 1.064 rho0; 0.1 d back it reads rho0 to 1e-4 (method.md section 1, "Walls").
-BOX_WALL_OFFSET_FACTOR = 0.1
-POISSON_RADIUS_FACTOR = 1.0  # general meshes: samples at least r apart, none missing beyond r
-CANDIDATE_SPACING_FACTOR = 0.2  # candidate density r/5 (ecosystem.md)
-FEATURE_ANGLE_DEG = 30.0
+SAMPLER_VERSION = "ipsph-sampling-4"
 # Fluid particles closer than d = 2r to a wall particle are removed: the first lattice layer sits
 # d from the walls (method.md: particles at r from a wall make DFSPH/IPSPH blow up). The factor
 # slightly below 1 keeps a layer that is exactly d away despite rounding.
@@ -58,14 +50,14 @@ def default_overlap_distance(radius: float) -> float:
 
 
 # ----------------------------------------------------------------------------- spec helpers
-def _check_radius(radius: float) -> float:
+def check_radius(radius: float) -> float:
     r = float(radius)
     if not (math.isfinite(r) and r > 0.0):
         raise ConfigError(f"particle_radius = {radius!r}: must be a positive finite length in metres")
     return r
 
 
-def _scaled_box(spec) -> tuple[np.ndarray, np.ndarray]:
+def scaled_box(spec) -> tuple[np.ndarray, np.ndarray]:
     """The box corners with the spec's scale applied (before rotation and translation)."""
     if spec.box_min is None or spec.box_max is None:
         raise ConfigError(f"{spec.name}: shape 'box' needs box_min and box_max")
@@ -81,18 +73,18 @@ def _scaled_box(spec) -> tuple[np.ndarray, np.ndarray]:
     return lo, hi
 
 
-def _rigid(t: model.Transform) -> model.Transform:
+def rigid_part(t: model.Transform) -> model.Transform:
     """The rotation and translation of t, without its scale."""
     return model.Transform(translate=t.translate, rotate_axis=t.rotate_axis, rotate_deg=t.rotate_deg)
 
 
-def _mesh_path(spec) -> Path:
+def mesh_path(spec) -> Path:
     if spec.mesh is None:
         raise ConfigError(f"{spec.name}: shape 'mesh' needs a mesh file")
     return Path(spec.mesh)
 
 
-def _shape(spec) -> str:
+def shape_of(spec) -> str:
     if spec.shape not in ("box", "mesh"):
         raise ConfigError(f"{spec.name}: shape = {spec.shape!r}; use 'box' or 'mesh'")
     return spec.shape
@@ -101,7 +93,7 @@ def _shape(spec) -> str:
 _PREPARED: dict = {}
 
 
-def _prepared(path: Path, transform: model.Transform, *, need_closed: bool, allow_open: bool):
+def prepared_mesh(path: Path, transform: model.Transform, *, need_closed: bool, allow_open: bool):
     """meshes.prepare_mesh, memoised in-process on (file identity, transform, flags)."""
     p = path.expanduser().resolve()
     try:
@@ -121,13 +113,13 @@ def mesh_report(spec) -> "meshes.MeshReport":
     """The mesh checks' report (bounds, volume, closedness, notes) of a mesh fluid or wall, from the
     in-process memo that sampling uses too: the pre-flight checks read no mesh a second time."""
     if isinstance(spec, model.FluidSpec):
-        return _prepared(_mesh_path(spec), spec.transform, need_closed=True, allow_open=spec.allow_open_mesh)[1]
-    return _prepared(_mesh_path(spec), spec.transform, need_closed=False, allow_open=True)[1]
+        return prepared_mesh(mesh_path(spec), spec.transform, need_closed=True, allow_open=spec.allow_open_mesh)[1]
+    return prepared_mesh(mesh_path(spec), spec.transform, need_closed=False, allow_open=True)[1]
 
 
 def mesh_notes(spec) -> list[str]:
     """What the mesh checks did to a mesh fluid or wall (e.g. inverted normals flipped), one line each."""
-    if _shape(spec) != "mesh":
+    if shape_of(spec) != "mesh":
         return []
     return [f"{spec.name}: {note}" for note in mesh_report(spec).notes]
 
@@ -154,13 +146,13 @@ def _mesh_lattice(bounds, d: float) -> tuple[np.ndarray, np.ndarray]:
 
 def _sample_fluid(spec: model.FluidSpec, r: float, frame=None) -> np.ndarray:
     d = spacing(r)
-    if _shape(spec) == "box":
-        lo, hi = _scaled_box(spec)
+    if shape_of(spec) == "box":
+        lo, hi = scaled_box(spec)
         counts = _fluid_box_counts(lo, hi, d)
         if np.any(counts == 0):
             return np.empty((0, 3), dtype=np.float64)
-        return meshes.transform_points(_grid(lo + d, counts, d), _rigid(spec.transform))
-    mesh, report = _prepared(_mesh_path(spec), spec.transform, need_closed=True, allow_open=spec.allow_open_mesh)
+        return meshes.transform_points(_grid(lo + d, counts, d), rigid_part(spec.transform))
+    mesh, report = prepared_mesh(mesh_path(spec), spec.transform, need_closed=True, allow_open=spec.allow_open_mesh)
     if frame is None:
         origin, counts = _mesh_lattice(report.bounds, d)
         lattice = _grid(origin, counts, d)
@@ -193,29 +185,29 @@ def lattice_frame(scene: model.Scene):
     are sampled on this lattice, so a mesh fluid and a box fluid filling the same tank are the same
     particles; `rest_lattice` continues it to fit the walls to.
     """
-    r = _check_radius(scene.particle_radius)
+    r = check_radius(scene.particle_radius)
     d = spacing(r)
     for spec in scene.boundaries:
         if spec.role != model.Role.CONTAINER:
             continue
-        if _shape(spec) == "box":
-            lo, _ = _scaled_box(spec)
+        if shape_of(spec) == "box":
+            lo, _ = scaled_box(spec)
         else:
-            scaled, _ = _prepared(
-                _mesh_path(spec), model.Transform(scale=spec.transform.scale), need_closed=False, allow_open=True
+            scaled, _ = prepared_mesh(
+                mesh_path(spec), model.Transform(scale=spec.transform.scale), need_closed=False, allow_open=True
             )
             box = meshes.aligned_box(scaled)
             if box is None:
                 continue
             lo = np.asarray(box[0], dtype=np.float64)
-        return _rigid_frame(lo + d, _rigid(spec.transform))
+        return _rigid_frame(lo + d, rigid_part(spec.transform))
     if not scene.fluids:
         return None
     spec = scene.fluids[0]
-    if _shape(spec) == "box":
-        lo, _ = _scaled_box(spec)
-        return _rigid_frame(lo + d, _rigid(spec.transform))
-    _, report = _prepared(_mesh_path(spec), spec.transform, need_closed=True, allow_open=spec.allow_open_mesh)
+    if shape_of(spec) == "box":
+        lo, _ = scaled_box(spec)
+        return _rigid_frame(lo + d, rigid_part(spec.transform))
+    _, report = prepared_mesh(mesh_path(spec), spec.transform, need_closed=True, allow_open=spec.allow_open_mesh)
     origin, _ = _mesh_lattice(report.bounds, d)
     return origin, np.eye(3)
 
@@ -235,7 +227,7 @@ def rest_lattice(scene: model.Scene, boundary_x: np.ndarray) -> np.ndarray:
     `boundary.Boundary` fits the wall volumes to it so that walls and fluid at rest together read
     rho0 (method.md section 1). Empty without fluid or walls.
     """
-    r = _check_radius(scene.particle_radius)
+    r = check_radius(scene.particle_radius)
     d, reach = spacing(r), 8.0 * r
     xb = np.ascontiguousarray(np.asarray(boundary_x, dtype=np.float64).reshape(-1, 3))
     frame = lattice_frame(scene)
@@ -263,142 +255,47 @@ def rest_lattice(scene: model.Scene, boundary_x: np.ndarray) -> np.ndarray:
 def fluid_positions(spec: model.FluidSpec, radius: float, *, cache: bool = True, frame=None) -> np.ndarray:
     """(N,3) float64 fluid particle positions for a box or mesh fluid body (module docstring);
     a mesh fluid on the lattice `frame` (`lattice_frame`) when given, else on its own centred one."""
-    r = _check_radius(radius)
-    extra = () if frame is None or _shape(spec) == "box" else (frame[0].tolist(), frame[1].tolist())
+    r = check_radius(radius)
+    extra = () if frame is None or shape_of(spec) == "box" else (frame[0].tolist(), frame[1].tolist())
     sample = (lambda: _sample_fluid(spec, r, frame)) if extra else (lambda: _sample_fluid(spec, r))
-    return _cached("fluid", spec, r, cache, sample, extra)
+    return cached_samples("fluid", spec, r, cache, sample, extra)
 
 
 def estimate_fluid_count(spec: model.FluidSpec, radius: float) -> int:
     """Particle count before sampling: exact for boxes; volume / d³ for closed meshes (the lattice
     count estimates the volume to a few percent); the bounding-box lattice (an upper bound) for open ones."""
-    r = _check_radius(radius)
+    r = check_radius(radius)
     d = spacing(r)
-    if _shape(spec) == "box":
-        lo, hi = _scaled_box(spec)
+    if shape_of(spec) == "box":
+        lo, hi = scaled_box(spec)
         return int(np.prod(_fluid_box_counts(lo, hi, d)))
-    _, report = _prepared(_mesh_path(spec), spec.transform, need_closed=True, allow_open=spec.allow_open_mesh)
+    _, report = prepared_mesh(mesh_path(spec), spec.transform, need_closed=True, allow_open=spec.allow_open_mesh)
     if report.closed:
         return int(round(report.volume / d**3))
     return int(np.prod(_mesh_lattice(report.bounds, d)[1]))
 
 
-# ----------------------------------------------------------------------------- boundary
-def _box_surface_grid(lo: np.ndarray, hi: np.ndarray, max_spacing: float, offset: float = 0.0) -> np.ndarray:
-    """Nodes of a regular grid on the 6 faces: n = ceil(edge / max_spacing) intervals; shared nodes once.
-
-    With `offset` the grid lies on the box grown by `offset` on every side (shrunk if negative)."""
-    lo, hi = lo - offset, hi + offset
-    ext = hi - lo
-    n = np.maximum(np.ceil(ext / max_spacing - 1e-9).astype(np.int64), 1)
-    ax = [lo[k] + ext[k] * (np.arange(n[k] + 1, dtype=np.float64) / n[k]) for k in range(3)]
-    ax[0][-1], ax[1][-1], ax[2][-1] = hi  # exact far faces
-    inner = [a[1:-1] for a in ax]
-
-    def block(xs, ys, zs):
-        gx, gy, gz = np.meshgrid(xs, ys, zs, indexing="ij")
-        return np.stack([gx.ravel(), gy.ravel(), gz.ravel()], axis=1)
-
-    parts = [
-        block(ax[0][[0, -1]], ax[1], ax[2]),  # x faces, with all their edges
-        block(inner[0], ax[1][[0, -1]], ax[2]),  # y faces, x-interior
-        block(inner[0], inner[1], ax[2][[0, -1]]),
-    ]  # z faces, x- and y-interior
-    return np.ascontiguousarray(np.concatenate(parts))
-
-
-def _feature_candidates(mesh, r: float) -> tuple[np.ndarray, np.ndarray]:
-    """(corners, dense edge samples) of the feature edges (30°, boundary and non-manifold edges)."""
-    fe = mesh.extract_feature_edges(
-        feature_angle=FEATURE_ANGLE_DEG,
-        boundary_edges=True,
-        non_manifold_edges=True,
-        feature_edges=True,
-        manifold_edges=False,
-    )
-    if fe.n_cells == 0:
-        return np.empty((0, 3)), np.empty((0, 3))
-    pts = np.asarray(fe.points, dtype=np.float64)
-    seg = np.asarray(fe.lines).reshape(-1, 3)[:, 1:]
-    degree = np.bincount(seg.ravel(), minlength=len(pts))
-    corners = pts[(degree != 2) & (degree > 0)]
-    a, b = pts[seg[:, 0]], pts[seg[:, 1]]
-    length = np.linalg.norm(b - a, axis=1)
-    k = np.maximum(np.ceil(length / (CANDIDATE_SPACING_FACTOR * r)).astype(np.int64), 1)
-    owner = np.repeat(np.arange(len(seg)), k)
-    step = np.arange(len(owner)) - np.repeat(np.cumsum(k) - k, k)  # 0..k-1 within a segment
-    frac = (step / np.repeat(k, k))[:, None]
-    dense = a[owner] + frac * (b - a)[owner]  # includes each start vertex
-    return np.ascontiguousarray(corners), np.ascontiguousarray(dense)
-
-
-def _face_candidates(mesh, r: float) -> np.ndarray:
-    from vtkmodules.vtkFiltersModeling import vtkPolyDataPointSampler
-
-    sampler = vtkPolyDataPointSampler()
-    sampler.SetInputData(mesh)
-    sampler.SetDistance(CANDIDATE_SPACING_FACTOR * r)
-    sampler.SetPointGenerationModeToRegular()
-    sampler.GenerateVertexPointsOn()
-    sampler.GenerateEdgePointsOn()
-    sampler.GenerateInteriorPointsOn()
-    sampler.Update()
-    import pyvista as pv
-
-    return np.ascontiguousarray(pv.wrap(sampler.GetOutput()).points, dtype=np.float64)
-
-
-def _sample_general_surface(mesh, r: float) -> np.ndarray:
-    corners, edges = _feature_candidates(mesh, r)
-    faces = _face_candidates(mesh, r)
-    cand = np.concatenate([corners, edges, faces])
-    return np.ascontiguousarray(cand[poisson_filter(cand, POISSON_RADIUS_FACTOR * r)])
-
-
-def _sample_boundary(spec: model.BoundarySpec, r: float) -> np.ndarray:
-    step = BOUNDARY_SPACING_FACTOR * r
-    # behind the surface, away from the fluid: outwards for a container, inwards for an obstacle
-    offset = BOX_WALL_OFFSET_FACTOR * spacing(r) * (1.0 if spec.role == model.Role.CONTAINER else -1.0)
-    if _shape(spec) == "box":
-        lo, hi = _scaled_box(spec)
-        return meshes.transform_points(_box_surface_grid(lo, hi, step, offset), _rigid(spec.transform))
-    scaled, _ = _prepared(
-        _mesh_path(spec), model.Transform(scale=spec.transform.scale), need_closed=False, allow_open=True
-    )
-    box = meshes.aligned_box(scaled)
-    if box is not None:
-        return meshes.transform_points(_box_surface_grid(box[0], box[1], step, offset), _rigid(spec.transform))
-    mesh, _ = _prepared(_mesh_path(spec), spec.transform, need_closed=False, allow_open=True)
-    return _sample_general_surface(mesh, r)
-
-
-def boundary_positions(spec: model.BoundarySpec, radius: float, *, cache: bool = True) -> np.ndarray:
-    """(M,3) float64 wall particles on the surface of a box or mesh boundary (module docstring)."""
-    r = _check_radius(radius)
-    return _cached("boundary", spec, r, cache, lambda: _sample_boundary(spec, r))
-
-
 def boundary_surface(spec: model.BoundarySpec) -> "pv.PolyData":
     """The transformed wall surface as triangles (for rendering)."""
-    if _shape(spec) == "box":
-        lo, hi = _scaled_box(spec)
-        return meshes.transform_mesh(meshes.box_mesh(tuple(lo), tuple(hi)), _rigid(spec.transform))
-    return _prepared(_mesh_path(spec), spec.transform, need_closed=False, allow_open=True)[0].copy()
+    if shape_of(spec) == "box":
+        lo, hi = scaled_box(spec)
+        return meshes.transform_mesh(meshes.box_mesh(tuple(lo), tuple(hi)), rigid_part(spec.transform))
+    return prepared_mesh(mesh_path(spec), spec.transform, need_closed=False, allow_open=True)[0].copy()
 
 
 # ----------------------------------------------------------------------------- overlaps
 def _inside_boundary(points: np.ndarray, spec: model.BoundarySpec, r: float) -> np.ndarray:
-    if _shape(spec) == "box":
-        lo, hi = _scaled_box(spec)
-        local = meshes.inverse_transform_points(points, _rigid(spec.transform))
+    if shape_of(spec) == "box":
+        lo, hi = scaled_box(spec)
+        local = meshes.inverse_transform_points(points, rigid_part(spec.transform))
         return np.all((local > lo) & (local < hi), axis=1)
-    mesh, report = _prepared(_mesh_path(spec), spec.transform, need_closed=False, allow_open=True)
+    mesh, report = prepared_mesh(mesh_path(spec), spec.transform, need_closed=False, allow_open=True)
     return inside_mesh(points, mesh, spacing(r), closed=report.closed)
 
 
 def solid_mask(points: np.ndarray, boundaries: Sequence[model.BoundarySpec], radius: float) -> np.ndarray:
     """True where a point is inside no obstacle and, when there are containers, inside at least one."""
-    r = _check_radius(radius)
+    r = check_radius(radius)
     p = np.ascontiguousarray(np.asarray(points, dtype=np.float64).reshape(-1, 3))
     keep = np.ones(len(p), dtype=bool)
     in_container = np.zeros(len(p), dtype=bool)
@@ -434,13 +331,11 @@ def remove_overlaps(
 
 def cache_key(kind: str, spec, radius: float) -> str:
     """The disk-cache key of a fluid's or wall's samples (sample_cache.cache_key)."""
-    return sample_cache.cache_key(
-        kind, spec, radius, SAMPLER_VERSION, _mesh_path(spec) if spec.shape != "box" else None
-    )
+    return sample_cache.cache_key(kind, spec, radius, SAMPLER_VERSION, mesh_path(spec) if spec.shape != "box" else None)
 
 
-def _cached(kind: str, spec, r: float, use_cache: bool, sample, extra=()) -> np.ndarray:
-    _shape(spec)
+def cached_samples(kind: str, spec, r: float, use_cache: bool, sample, extra=()) -> np.ndarray:
+    shape_of(spec)
     if not use_cache:
         return sample()
     key = cache_key(kind, spec, r)

@@ -6,8 +6,8 @@
     sim.positions, sim.velocities, sim.densities, sim.pressures, sim.ids
 
 Time stepping (method.md section 1): one dt per step, from the CFL condition evaluated at the
-end of the previous step, dt = clamp(cfl * 0.4 * d / max|v|, dt_min, dt_max) (with Standard
-viscosity also at most H^2 / (60 nu)); steps whose CFL value fell below dt_min are counted, never
+end of the previous step, `Scene.cfl_step`: dt = clamp(cfl * 0.4 * d / max|v|, dt_min, dt_max)
+(with Standard viscosity also at most H^2 / (60 nu)); steps whose CFL value fell below dt_min are counted, never
 hidden. When the next step would cross a frame time, the remaining time is spread over the last
 two steps (no sliver steps).
 """
@@ -22,13 +22,16 @@ from pathlib import Path
 import numpy as np
 
 from .backends import Backend, get_backend
-from .boundary import Boundary
-from .errors import ConfigError, NumericalFailure
+from .boundary import model_of
+from .errors import NumericalFailure
 from .methods import METHODS
 from .methods.base import StepReport
 from .model import Role, Scene
-from .params import spacing, support
+from .neighbours import search_for
 from .particles import ParticleState
+from .sampled import sample, sample_scene, wall_groups  # noqa: F401 - sample_scene: part of the Python API here
+from .settle import SETTLE_MAX_STEPS, hydrostatic_pressure, wants_settle
+from .settle import settle as settle_pass
 
 
 @dataclass
@@ -42,208 +45,6 @@ class StepStats(StepReport):
     dt_clamped: bool = False
     emitted: int = 0  # particles emitted at the end of the step (ipsph.emitters)
     removed: int = 0  # particles removed by sinks and the domain box
-
-
-# Explicit Standard viscosity is stable while nu dt lambda_max <= 2, lambda_max the largest
-# eigenvalue of its operator: 59.6 / H^2 on the lattice (power iteration, method.md section 1).
-# The step keeps half of that margin: dt <= H^2 / (60 nu).
-VISCOUS_STEP = 60.0
-
-
-# The pre-pass before t = 0 (method.md section 1, "A start at rest"): the method's own steps of
-# dt_max with the velocities damped by SETTLE_DAMPING after each, until SETTLE_HOLD steps in a row
-# end with every particle slower than SETTLE_SPEED (a tenth of the tank's 0.1 m/s acceptance), at
-# most SETTLE_MAX_STEPS steps. A hold of one step: waiting for 100 quiet steps cost the tank 2-4x
-# the steps and did not keep late rearrangements out of the run (method.md).
-SETTLE_DAMPING = 0.9
-SETTLE_SPEED = 0.01
-SETTLE_HOLD = 1
-SETTLE_MAX_STEPS = 4000
-# simulation.settle = auto settles (with IPSPH and DFSPH; PF never comes to rest) fluid at rest
-# that covers its container's floor: fluid above every d x d cell of the floor farther than
-# SETTLE_REACH d from the walls (a box fluid filling a tank has its first layer 1.1 d from the wall
-# particles).
-SETTLE_REACH = 1.5
-
-
-def wants_settle(scene: Scene, fluid_x: np.ndarray, fluid_v: np.ndarray, boundary_x: np.ndarray) -> bool:
-    """Whether `simulation.settle` asks for the pre-pass: on, or auto and the fluid is a pool at rest."""
-    if any(b.moving for b in scene.boundaries) or scene.emitters:
-        # the pre-pass steps the method from rest at t = 0: moving walls and bodies would move and
-        # emitters would not emit during it, so such scenes start as sampled
-        if scene.settle == "on":
-            raise ConfigError(
-                "simulation.settle: 'on' cannot be combined with moving walls, rigid "
-                "bodies or emitters (use 'auto' or 'off')"
-            )
-        return False
-    if scene.settle != "auto":
-        return scene.settle == "on"
-    if scene.method == "pf":  # PF keeps a noise floor and never comes to rest (method.md section 3)
-        return False
-    g = np.asarray(scene.gravity, dtype=np.float64)
-    if (
-        len(fluid_x) == 0
-        or len(boundary_x) == 0
-        or np.any(fluid_v != 0.0)
-        or not np.any(g)
-        or not any(b.role == Role.CONTAINER for b in scene.boundaries)
-    ):
-        return False
-    down = int(np.argmax(np.abs(g)))
-    if np.count_nonzero(g) != 1:  # gravity along an axis only: "its floor" is a wall plane
-        return False
-    across = [k for k in range(3) if k != down]
-    d = spacing(scene.particle_radius)
-    reach = SETTLE_REACH * d
-    lo, hi = boundary_x.min(axis=0)[across], boundary_x.max(axis=0)[across]
-    # floor cells of size d (from the walls' lower corner) that lie inside [lo + reach, hi - reach]
-    # must all have fluid above them
-    first = math.ceil(reach / d)
-    last = np.floor((hi - lo - reach) / d).astype(np.int64) - 1
-    if np.any(last < first):
-        return False
-    cells = np.floor((fluid_x[:, across] - lo) / d).astype(np.int64)
-    cells = cells[np.all((cells >= first) & (cells <= last), axis=1)]
-    covered = np.zeros(last - first + 1, dtype=bool)
-    covered[cells[:, 0] - first, cells[:, 1] - first] = True
-    return bool(covered.all())
-
-
-# The hydrostatic seed (method.md section 1): fluid at rest that stands on walls starts its solvers'
-# warm starts from rho0 |g| depth, lowered towards free side faces. Runs of particles along an axis
-# are broken by gaps wider than SEED_GAP d; a run's end is walled when a wall particle lies between
-# d/2 and SEED_GAP d beyond it (a box fluid's first layer sits 1.1 d from the wall particles).
-SEED_GAP = 1.5
-
-
-def _runs(along: np.ndarray, row: np.ndarray, gap: float):
-    """Runs of particles along one axis within rows of cells: (order, run, starts, ends), `order`
-    sorting the particles by row then position, `run` each sorted particle's run, `starts` and
-    `ends` the sorted indices of each run's first and last particle."""
-    order = np.lexsort((along, row))
-    a, r = along[order], row[order]
-    new = np.ones(len(a), dtype=bool)
-    new[1:] = (r[1:] != r[:-1]) | (a[1:] - a[:-1] > gap)
-    starts = np.flatnonzero(new)
-    ends = np.append(starts[1:], len(a)) - 1
-    return order, np.cumsum(new) - 1, starts, ends
-
-
-def hydrostatic_pressure(scene: Scene, fluid_x: np.ndarray, boundary_x: np.ndarray) -> np.ndarray | None:
-    """The seed p_i = rho0 |g| D_i (1 - exp(-pi X_i / (2 H_i))) for fluid standing on walls, 0
-    elsewhere; None when there is nothing to seed (no walls, no gravity, gravity not along an axis).
-
-    D_i is the depth below the top of the particle's vertical run (the surface half a spacing above
-    its highest particle), H_i that run's height and X_i the distance to the nearest free end of
-    its horizontal runs (+inf when walls close them): the leading term of the harmonic correction
-    that makes rho0 g D vanish on a free side face, which decays over 2 H / pi (method.md section 1).
-    Vertical runs that do not stand on a wall (a falling block, a drop above the water) get none."""
-    g = np.asarray(scene.gravity, dtype=np.float64)
-    if len(fluid_x) == 0 or len(boundary_x) == 0 or np.count_nonzero(g) != 1:
-        return None
-    down = int(np.argmax(np.abs(g)))
-    d = spacing(scene.particle_radius)
-    gap = SEED_GAP * d
-    y = fluid_x.copy()
-    y[:, down] *= -np.sign(g[down])  # heights against gravity
-    yb = boundary_x.copy()
-    yb[:, down] *= -np.sign(g[down])
-    cell = np.floor(y / d).astype(np.int64)
-    wall_cell = np.floor(yb / d).astype(np.int64)
-    lo = np.minimum(cell.min(axis=0), wall_cell.min(axis=0)) - 3
-    span = np.maximum(cell.max(axis=0), wall_cell.max(axis=0)) + 4 - lo
-
-    def key(c):
-        c = c - lo
-        return (c[:, 0] * span[1] + c[:, 1]) * span[2] + c[:, 2]
-
-    walls = np.unique(key(wall_cell))
-
-    def walled(ends: np.ndarray, axis: int, sign: float) -> np.ndarray:
-        """Whether a wall particle lies between d/2 and gap beyond these particles along sign * axis."""
-        hit = np.zeros(len(ends), dtype=bool)
-        for beyond in (0.5 * d, gap):
-            probe = np.floor(y[ends] / d).astype(np.int64)
-            probe[:, axis] = np.floor((y[ends, axis] + sign * beyond) / d).astype(np.int64)
-            hit |= np.isin(key(probe), walls)
-        return hit
-
-    def rows(axis: int) -> np.ndarray:
-        """The row of cells along `axis` each particle is in (its key, with that axis's cell fixed)."""
-        return key(np.column_stack([np.full(len(y), lo[k]) if k == axis else cell[:, k] for k in range(3)]))
-
-    # vertical runs: depth, height, standing on walls
-    order, run, starts, ends = _runs(y[:, down], rows(down), gap)
-    top, bottom = y[order[ends], down], y[order[starts], down]
-    standing = walled(order[starts], down, -1.0)
-    depth = np.empty(len(y))
-    height = np.empty(len(y))
-    depth[order] = np.where(standing[run], top[run] - y[order, down] + 0.5 * d, 0.0)
-    height[order] = top[run] - bottom[run] + d
-    # horizontal runs: the distance to the nearest free end
-    free = np.full(len(y), np.inf)
-    for axis in (k for k in range(3) if k != down):
-        order, run, starts, ends = _runs(y[:, axis], rows(axis), gap)
-        a = y[order, axis]
-        lo_end = np.where(walled(order[starts], axis, -1.0)[run], np.inf, a - y[order[starts], axis][run] + 0.5 * d)
-        hi_end = np.where(walled(order[ends], axis, 1.0)[run], np.inf, y[order[ends], axis][run] - a + 0.5 * d)
-        free[order] = np.minimum(free[order], np.minimum(lo_end, hi_end))
-    return scene.density0 * np.abs(g[down]) * depth * (1.0 - np.exp(-0.5 * np.pi * free / height))
-
-
-def sample_scene(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
-    """Fluid positions and velocities, wall particles, and notes on what was removed.
-
-    Fluid particles inside an obstacle, outside every container, or closer than d = 2r to a
-    wall particle are removed and counted (the lattice would otherwise start inside a wall).
-    """
-    from . import sampling
-
-    r = scene.particle_radius
-    xs, vs = [np.zeros((0, 3))], [np.zeros((0, 3))]
-    frame = sampling.lattice_frame(scene)  # mesh fluids share the walls' rest lattice
-    for spec in scene.fluids:
-        x = sampling.fluid_positions(spec, r, frame=frame)
-        xs.append(x)
-        vs.append(np.tile(np.asarray(spec.velocity, dtype=np.float64), (len(x), 1)))
-    fluid_x, fluid_v = np.concatenate(xs), np.concatenate(vs)
-    walls = [sampling.boundary_positions(spec, r) for spec in scene.boundaries]
-    boundary_x = np.concatenate([np.zeros((0, 3))] + walls)
-    notes = [n for spec in (*scene.fluids, *scene.boundaries) for n in sampling.mesh_notes(spec)]
-    if len(scene.boundaries) and len(fluid_x):
-        kept, removed = sampling.remove_overlaps(
-            fluid_x, boundary_x, sampling.default_overlap_distance(r), boundaries=scene.boundaries, radius=r
-        )
-        if any(spec.dynamic for spec in scene.boundaries):  # a wider gap around rigid bodies (rigid.BODY_GAP_D)
-            from .rigid import body_gap_mask
-
-            kept &= body_gap_mask(fluid_x, scene, walls, r)
-            removed = int(len(fluid_x) - kept.sum())
-        if removed:
-            notes.append(
-                f"{removed} of {len(fluid_x)} fluid particles overlapped a wall or lay outside the "
-                f"containers and were removed"
-            )
-            fluid_x, fluid_v = fluid_x[kept], fluid_v[kept]
-    if scene.emitters:
-        from .emitters import wall_notes
-
-        notes += wall_notes(scene, boundary_x)
-    return np.ascontiguousarray(fluid_x), np.ascontiguousarray(fluid_v), np.ascontiguousarray(boundary_x), notes
-
-
-def _wall_groups(scene: Scene, n_walls: int) -> np.ndarray | None:
-    """Per wall particle, which moving wall it belongs to (rigid.boundary_groups; None: all static)."""
-    if not any(b.moving for b in scene.boundaries):
-        return None
-    from .rigid import boundary_groups
-    from .sampling import boundary_positions
-
-    counts = [len(boundary_positions(spec, scene.particle_radius)) for spec in scene.boundaries]
-    if sum(counts) != n_walls:
-        raise ValueError(f"{n_walls} wall particles given, the scene's walls sample {sum(counts)}")
-    return boundary_groups(scene, counts)
 
 
 def _host(array_of, doc: str) -> property:
@@ -264,16 +65,14 @@ class Simulation:
         backend: str | Backend | None = None,
         capacity: int | None = None,
         settle: bool = True,
+        wall_counts: list[int] | None = None,
     ):
         self.scene = scene
         backend = scene.backend if backend is None else backend  # simulation.backend, .precision, .device
         self.be = get_backend(backend, scene.precision, scene.device) if isinstance(backend, str) else backend
-        r = scene.particle_radius
-        self.spacing = spacing(r)
-        self.support = support(r)
-        # every particle carries the water of its lattice cell, rho0 d^3 (method.md section 1); one
-        # fluid mass: the passes take it as a scalar
-        mass = scene.density0 * self.spacing**3
+        self.spacing = scene.spacing
+        self.support = scene.support
+        mass = scene.fluid_mass  # one fluid mass: the passes take it as a scalar
         self.flow = None  # emitters, sinks, domain box (ipsph.emitters); None: a fixed particle count
         if scene.emitters or scene.sinks or scene.domain.min is not None:
             from .emitters import Flow, planned_emission
@@ -286,14 +85,16 @@ class Simulation:
         from .sampling import rest_lattice
 
         lattice = rest_lattice(scene, boundary_x) if scene.fit_wall_volumes else None
-        groups = _wall_groups(scene, len(boundary_x))
-        self.boundary = Boundary(boundary_x, self.support, scene.density0, lattice, self.spacing, groups)
-        self.walls = None  # moving walls and rigid bodies (ipsph.rigid)
+        groups, depth = wall_groups(scene, len(boundary_x), wall_counts)
+        self.boundary = model_of(scene).particles(
+            boundary_x, self.support, scene.density0, lattice, self.spacing, groups, depth
+        )
+        self.walls = None  # moving walls and rigid bodies (ipsph.boundary.rigid)
         if groups is not None:
-            from .rigid import WallDriver
+            from .boundary.rigid import WallDriver
 
             self.walls = WallDriver(scene, self.boundary, self.support, mass)
-        self.search = self.be.neighbour_search(self.support, self.boundary)
+        self.search = search_for(self.be, self.support, self.boundary)
         self.method = METHODS[scene.method](scene, self.state, self.boundary, self.search, self.be, mass)
         self.method.walls = self.walls
         self.time = 0.0
@@ -301,7 +102,7 @@ class Simulation:
         self.clamped_steps = 0
         ts = scene.time_step
         self.dt_min = ts.dt_min
-        self.dt_max = ts.resolved_dt_max(r)
+        self.dt_max = scene.dt_max
         self.domain = self._domain(boundary_x)
         self.method.prepare()
         self.settle_report: dict = {}
@@ -311,51 +112,22 @@ class Simulation:
         vmax, _ = self.be.speed_energy(self.state.v, self.state.m)
         self.dt_next, self._clamped = self._cfl(self._wall_speed(vmax))
         if ts.dt_initial is not None:
-            self.dt_next = min(ts.dt_initial, self.dt_max, max(self._viscous_dt(), self.dt_min))
+            self.dt_next = min(ts.dt_initial, scene.rest_dt())
         if settle and not settled and vmax == 0.0 and self.walls is None:
             self.seed_hydrostatic()
 
+    def settle(self, max_steps: int = SETTLE_MAX_STEPS) -> dict:
+        """The pre-pass before t = 0 (`ipsph.settle.settle`); returns its report."""
+        return settle_pass(self, max_steps)
+
     def seed_hydrostatic(self) -> None:
         """Fluid at rest standing on walls starts the method's warm starts from its hydrostatic
-        pressure (`hydrostatic_pressure`, method.md section 1): the first steps then correct that
-        seed near the walls and the free surfaces instead of loading the column up from the floor."""
+        pressure (`ipsph.settle.hydrostatic_pressure`, method.md section 1): the first steps then
+        correct that seed near the walls and the free surfaces instead of loading the column up
+        from the floor."""
         p = hydrostatic_pressure(self.scene, self.be.to_host(self.state.x), self.boundary.x)
         if p is not None and np.any(p):
             self.method.seed(self.be.asarray(p), self.dt_next)
-
-    def settle(self, max_steps: int = SETTLE_MAX_STEPS) -> dict:
-        """The pre-pass before t = 0: run the method's steps of dt_max (at most the viscous limit)
-        from rest, damping the velocities (v <- SETTLE_DAMPING v) after each, until SETTLE_HOLD
-        steps in a row leave every particle below SETTLE_SPEED (or max_steps). The fluid then
-        starts at rest (v = 0) in the solver's discrete equilibrium, and the method keeps its warm starts: the first step starts from the
-        hydrostatic pressure instead of loading it up. The clock stays at 0. Returns a report
-        (steps, the last step's top speed, how far the particles moved, in r)."""
-        be, st, r = self.be, self.state, self.scene.particle_radius
-        t0 = time.perf_counter()
-        start = be.to_host(st.x)[np.argsort(be.to_host(st.id))]
-        dt = min(self.dt_max, max(self._viscous_dt(), self.dt_min))  # the CFL rule's bounds at rest
-        steps, still, vmax, top = 0, 0, math.inf, 0.0
-        while steps < max_steps and still < SETTLE_HOLD:
-            self.method.step(dt)
-            steps += 1
-            if self._first_unhealthy() >= 0:
-                self._fail(self._first_unhealthy(), "while settling before t = 0")
-            vmax, _ = be.speed_energy(st.v, st.m)
-            still = still + 1 if vmax <= SETTLE_SPEED else 0
-            top = max(top, vmax) if still else 0.0  # the fastest particle of the quiet stretch
-            be.scale(st.v, SETTLE_DAMPING)
-        be.scale(st.v, 0.0)
-        self.method.prepare()
-        moved = np.linalg.norm(be.to_host(st.x)[np.argsort(be.to_host(st.id))] - start, axis=1) / r
-        return {
-            "steps": steps,
-            "dt": dt,
-            "max_speed": float(top if still else vmax),
-            "converged": bool(still >= SETTLE_HOLD),
-            "moved_mean_r": float(moved.mean()),
-            "moved_max_r": float(moved.max()),
-            "seconds": time.perf_counter() - t0,
-        }
 
     # -- construction -------------------------------------------------------------------------
     @classmethod
@@ -367,8 +139,8 @@ class Simulation:
             scene = load_scene(Path(scene), list(overrides))
         elif isinstance(scene, dict):
             scene = scene_from_dict(scene, Path.cwd())
-        fluid_x, fluid_v, boundary_x, _ = sample_scene(scene)
-        return cls(scene, fluid_x, fluid_v, boundary_x)
+        s = sample(scene)
+        return cls(scene, s.fluid_x, s.fluid_v, s.boundary_x, wall_counts=s.wall_counts)
 
     def _domain(self, boundary_x):
         """Fluid leaving the containers' bounds (plus one support radius) has escaped; with a
@@ -381,16 +153,8 @@ class Simulation:
 
     # -- clock --------------------------------------------------------------------------------
     def _cfl(self, vmax: float) -> tuple[float, bool]:
-        """dt = clamp(min(cfl * 0.4 * d / max|v|, dt_viscous), dt_min, dt_max); True when clamped
-        up to dt_min. dt_viscous = H^2 / (VISCOUS_STEP nu) with Standard viscosity, else infinite."""
-        raw = self.scene.time_step.cfl_factor * 0.4 * self.spacing / vmax if vmax > 0 else math.inf
-        raw = min(raw, self._viscous_dt())
-        return min(max(raw, self.dt_min), self.dt_max), raw < self.dt_min
-
-    def _viscous_dt(self) -> float:
-        """H^2 / (VISCOUS_STEP nu): the explicit Standard viscosity's step limit (inf without it)."""
-        nu = self.scene.standard_viscosity
-        return self.support * self.support / (VISCOUS_STEP * nu) if nu > 0.0 else math.inf
+        """The CFL step at the fastest speed `vmax` (`Scene.cfl_step`) and whether it was clamped up to dt_min."""
+        return self.scene.cfl_step(vmax)
 
     def step(self, dt: float | None = None) -> StepStats:
         """Advance one step of `dt` (default: the CFL step) and check the state's health."""
@@ -408,7 +172,10 @@ class Simulation:
         self.steps += 1
         emitted = removed = 0
         if self.flow is not None:  # emit, remove: the count changes here only
-            emitted, removed = self.flow.after_step(self)
+            emitted, removed = self.flow.after_step(self.state, self.be, self.time)
+            if emitted or removed:
+                self.method.resize(self.state.n)
+                self.method.prepare()
         st = self.state
         bad = self._first_unhealthy()
         if bad >= 0:

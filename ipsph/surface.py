@@ -178,7 +178,7 @@ def from_polydata(poly) -> Surface:
 
 
 def read_vtp(path) -> Surface:
-    from .render import read_surface
+    from .io.vtu import read_surface
 
     poly = read_surface(path)
     if poly is None:
@@ -226,22 +226,6 @@ def write_surface(path, s: Surface, fmt: str = "vtp", time: float | None = None)
     return os.path.getsize(path)
 
 
-def container_bounds(boundaries) -> list[float] | None:
-    """[xmin, xmax, ymin, ymax, zmin, zmax] around the container walls (m), or None without one."""
-    from .model import Role
-    from .sampling import boundary_surface
-
-    boxes = [
-        np.asarray(boundary_surface(b).bounds, dtype=float).reshape(3, 2)
-        for b in boundaries
-        if b.role == Role.CONTAINER
-    ]
-    if not boxes:
-        return None
-    lo, hi = np.min([b[:, 0] for b in boxes], axis=0), np.max([b[:, 1] for b in boxes], axis=0)
-    return [float(v) for pair in zip(lo, hi) for v in pair]
-
-
 def container_bounds_of(scene_dict: dict) -> list[float] | None:
     """container_bounds of a stored scene's box containers (run.json without surface.clip_bounds)."""
     boxes = [
@@ -269,7 +253,7 @@ def surface_output(out_dir, *, fmt: str = "vtp", overrides=(), threads: int | No
     from .io.provenance import read_run_json
     from .io.pvd import PvdSeries
     from .io.vtu import read_particles
-    from .render.output import _frame_index
+    from .io.pvd import frame_index
     from .scene import surface_config
 
     log = log or (lambda msg: print(msg, file=sys.stderr))
@@ -294,7 +278,7 @@ def surface_output(out_dir, *, fmt: str = "vtp", overrides=(), threads: int | No
     written, failed, skipped = [], {}, 0
     listed = _time.perf_counter()
     for k, (t, f) in enumerate(series.frames):
-        i = _frame_index(f, k)
+        i = frame_index(f, k)
         target = out / out_io.surface_file(i, fmt)
         vtp = out / out_io.surface_file(i, "vtp")
         if target.is_file():

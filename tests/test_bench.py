@@ -12,7 +12,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from benchmarks.__main__ import main as studies_main
+from benchmarks.table1 import table1
 from ipsph.benchmark import report
+from ipsph.benchmark.scaling import scaling_table
 from ipsph.benchmark.ours import run_ours
 from ipsph.benchmark.scenes import (
     PIPELINES,
@@ -207,7 +210,7 @@ def test_failed_run_is_a_note():
 
 
 def test_table1_has_the_paper_columns():
-    text = report.table1(report.summarise(_rows(), 0.5), markdown=True)
+    text = table1(report.summarise(_rows(), 0.5), markdown=True)
     head = text.splitlines()[0]
     for col in (
         "avg divergenceSolve ms",
@@ -238,7 +241,7 @@ def test_scaling_table_reports_per_particle_costs():
         "ipsph",
         "scaling",
     )
-    text = report.scaling_table([row], markdown=False, max_load=0.5)
+    text = scaling_table([row], markdown=False, max_load=0.5)
     assert "100,000" in text and "0.500" in text and "1200" in text and "900" in text and "321" in text
 
 
@@ -256,7 +259,7 @@ def test_scaling_table_gives_iterations_and_error_for_ours_and_the_peer():
         "dfsph",
         "scaling",
     )
-    lines = report.scaling_table([ours, peer], markdown=True, max_load=0.5).splitlines()
+    lines = scaling_table([ours, peer], markdown=True, max_load=0.5).splitlines()
     assert "| iterations (pressure / divergence) | density err mean % |" in lines[0]
     assert "| 2.0 / 1.5 | 2e-05 |" in lines[2]
     assert "| 4.000 | 26.1 / 4.5 | 0.06 |" in lines[3]  # 400 ms / 100k particles
@@ -372,15 +375,14 @@ def test_from_json_reprints_saved_results(tmp_path, capsys):
 
 
 def test_table1_shows_loaded_runs_marked():
-    text = report.table1(report.summarise(_rows(), 0.5), markdown=False)
+    text = table1(report.summarise(_rows(), 0.5), markdown=False)
     assert "IPSPH [loaded, run 3]" in text and "IPSPH (median of 2)" in text
 
 
 def test_table1_dragon_mesh_must_exist(tmp_path, capsys):
-    code = cli_main(
+    code = studies_main(
         [
-            "bench",
-            "--table1",
+            "table1",
             "--pipelines",
             "two_dragons",
             "--no-peer",
@@ -395,7 +397,7 @@ def test_table1_dragon_mesh_must_exist(tmp_path, capsys):
 
 
 def test_render_cost_reports_a_time_or_why_not():
-    from ipsph.benchmark.render_cost import render_cost, table
+    from benchmarks.render_cost import render_cost, table
 
     row = render_cost(1000, frames=1)
     if row.get("error"):
@@ -410,7 +412,7 @@ def test_render_cost_reports_a_time_or_why_not():
 
 
 def test_render_overhead_table_judges_the_median_ratio():
-    from ipsph.benchmark.render_cost import overhead_table
+    from benchmarks.render_cost import overhead_table
 
     s = {
         "pairs": [{}] * 3,

@@ -4,7 +4,8 @@ warm starts from rho0 g depth, lowered towards free side faces; fluid in free fa
 import numpy as np
 
 from ipsph.scene import scene_from_dict
-from ipsph.simulation import Simulation, hydrostatic_pressure, sample_scene
+from ipsph.settle import hydrostatic_pressure
+from ipsph.simulation import Simulation, sample_scene
 
 R = 0.025
 D = 2 * R

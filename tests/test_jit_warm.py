@@ -34,8 +34,8 @@ print(json.dumps(used))
 
 @pytest.mark.parametrize("method", jit_warm.METHODS)
 def test_the_signature_list_holds_every_kernel_a_method_runs(method):
-    """Fails when a kernel is added or its argument types change without `python -m ipsph.jit_warm
-    --write` (the helper would then compile the wrong thing and the cold start would not gain)."""
+    """Fails when a kernel is added or its argument types change without `python -m ipsph.jit_record`
+    (the helper would then compile the wrong thing and the cold start would not gain)."""
     env = dict(os.environ, IPSPH_NO_JIT_HELPER="1")
     out = subprocess.run(
         [sys.executable, "-c", _USED, method], capture_output=True, text=True, env=env, cwd=REPO, timeout=600
@@ -43,8 +43,18 @@ def test_the_signature_list_holds_every_kernel_a_method_runs(method):
     assert out.returncode == 0, out.stderr
     used = {(m, q, tuple(s)) for m, q, s in json.loads(out.stdout.strip().splitlines()[-1])}
     listed = {(m, q, tuple(s)) for m, q, s in jit_warm.load_signatures()[method]}
-    assert used - listed == set(), "run `python -m ipsph.jit_warm --write`"
+    assert used - listed == set(), "run `python -m ipsph.jit_record`"
     assert listed - used == set(), "the list names kernels this method no longer runs"
+
+
+def test_the_signature_file_is_the_recorder_s_output():
+    """jit_signatures.json is generated (`python -m ipsph.jit_record`, which also has `--check`), never
+    edited by hand: its text is exactly what the recorder writes for its content, and the test
+    above holds that content to what the methods compile."""
+    from ipsph import jit_record
+
+    text = jit_warm.SIGNATURES_FILE.read_text()
+    assert text == jit_record.render_signatures(json.loads(text)["methods"]), "run `python -m ipsph.jit_record`"
 
 
 def test_signatures_parse_back_to_numba_types():

@@ -10,7 +10,7 @@ import pytest
 
 from ipsph.model import Keyframe, MotionSpec
 from ipsph.motion import Motion
-from ipsph.sampling import BOX_WALL_OFFSET_FACTOR
+from ipsph.boundary import MODELS
 from ipsph.simulation import Simulation
 
 from test_cli_errors import assert_refused, cube, scene_file, write_obj
@@ -76,15 +76,18 @@ def test_keyframes_pass_through_their_keys_smoothly_and_hold_after_the_last():
 # -- the piston ---------------------------------------------------------------------------------------
 # A piston (a keyframed obstacle box spanning the tank's height and depth) pushed STROKE into a closed
 # tank of water at rest. The water level must rise by the swept volume over the free-surface area,
-# stroke * h_a * D / (L1 * D) = stroke * h_a / L1, L1 the water's length after the push (the wall
-# planes minus d: each particle owns a cell of width d, the first layer sits d from the walls).
-R = 0.025
+# stroke * h_a * D / (L1 * D) = stroke * h_a / L1, L1 the water's length after the push: the wall
+# planes less d/2 at the tank's wall (each particle owns a cell of width d, the first layer sits d from
+# the walls) and nothing at the piston (the wall model puts its layer where the water meets its face,
+# method.md section 9).
+R = 0.0125
 D_SPACING = 2 * R
 FACE0, STROKE = 1.0, 0.25
 T_HOLD, T_MOVE, T_SETTLE = 0.3, 1.0, 0.4
-# 5 %: the tolerance. Measured -4.3 % (IPSPH): the level is the median over columns of width d
-# of the top particle's height, so it is known to about a quarter spacing (the free surface of a
-# 4-to-5-layer column ripples by that much 0.4 s after the push); h_a is ~0.19 m, the rise ~0.065 m.
+# 5 %: the tolerance. Measured -3.5 % (IPSPH): the level is the median over columns of width d
+# of the top particle's height, so it is known to about a quarter spacing (the free surface ripples by
+# that much 0.4 s after the push); h_a is ~0.21 m, the rise ~0.07 m (at r = 0.025, with 4-5 layers, a
+# quarter spacing was 9 % of the rise).
 LEVEL_RISE_TOLERANCE = 0.05
 
 
@@ -138,11 +141,11 @@ def test_piston_raises_the_level_by_swept_volume_over_free_surface_and_nothing_p
     h_a = _level(sim.positions)
     sim.advance_to(T_HOLD + T_MOVE + T_SETTLE, on_step)
     h_b = _level(sim.positions)
-    # it did move: the piston's particles sit BOX_WALL_OFFSET_FACTOR d inside its box (an obstacle's
-    # walls are sampled behind its surface, method.md section 1)
-    face = FACE0 + BOX_WALL_OFFSET_FACTOR * D_SPACING
+    # it did move: the piston's particles sit the wall model's depth inside its box (an obstacle's
+    # walls are sampled behind its surface, method.md section 9)
+    face = FACE0 + MODELS["akinci-volume"].obstacle_depth_d * D_SPACING
     assert b.x[b.groups == 2][:, 0].min() == pytest.approx(face - STROKE, abs=1e-9)
-    expected = STROKE * h_a / (FACE0 - STROKE - D_SPACING)
+    expected = STROKE * h_a / (FACE0 - STROKE - D_SPACING / 2)
     assert h_b - h_a == pytest.approx(expected, rel=LEVEL_RISE_TOLERANCE), (h_a, h_b, expected)
     assert min(gaps) > 0.0
 

@@ -1,5 +1,7 @@
 """Neighbour search against the brute-force oracle (PySPH NNPS-style tests)."""
 
+import math
+
 import numpy as np
 import pytest
 
@@ -24,10 +26,14 @@ def test_matches_brute_force_after_sorting(seed, n, nb):
     nl = search.lists
     want_f = brute_force_neighbours(xs, xs, h, True)
     assert all(np.array_equal(a, b) for a, b in zip(_lists(nl.fluid, nl.fluid_count), want_f))
-    assert nl.fluid.shape[1] >= nl.fluid_count.max()  # the stride grew past the initial 16
     want_b = brute_force_neighbours(xs, boundary.x, h, False)
     got_b = _lists(nl.boundary, nl.boundary_count)
     assert all(np.array_equal(a, b) for a, b in zip(got_b, want_b))
+    # the strides grew by the documented rule (1.25 x the longest list, up to a multiple of 16) from
+    # the oracle's longest lists, and only when a list did not fit the starting stride
+    for k0, want, got in ((16, want_f, nl.fluid), (8, want_b, nl.boundary)):
+        most = max((len(w) for w in want), default=0)
+        assert got.shape[1] == (k0 if most <= k0 else max(k0, math.ceil(most * 1.25 / 16) * 16)), (k0, most)
     # the permutation is a permutation, and sorted particles are grouped by cell (x fastest)
     assert np.array_equal(np.sort(perm), np.arange(n))
     g = search.grid

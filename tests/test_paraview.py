@@ -163,7 +163,31 @@ def test_run_writes_named_parts_fluid_series_field_data_and_script(dam):
     ns = {"__name__": "ipsph.paraview.view_script"}  # defines, runs nothing (no paraview here)
     exec((dam / "paraview_view.py").read_text(), ns)
     assert ns["SETTINGS"] == json.loads(json.dumps(s))
-    assert s["files"] == {"fluid": "fluid.pvd", "walls": "boundary_surface.vtp", "wall_particles": "boundary.vtu"}
+    assert s["files"] == {
+        "fluid": "fluid.pvd",
+        "walls": "boundary_surface.vtp",
+        "wall_particles": "boundary.vtu",
+        "surface": None,  # no --surface
+        "bodies": None,  # no moving walls
+    }
+
+
+def test_the_script_opens_every_part_of_run_pvd(dam, tmp_path):
+    """Each part of run.pvd has a key in the script's files and a reader in the script; a run with
+    moving walls (bodies.pvd) or --surface (surface.pvd) gets them filled in."""
+    from ipsph.io import PARTS
+    from ipsph.paraview import PART_FILES, TEMPLATE
+
+    assert set(PART_FILES) == {p.name for p in PARTS}
+    template = TEMPLATE.read_text()
+    for key in PART_FILES.values():
+        assert f'files["{key}"]' in template or f'files.get("{key}")' in template, key
+    out = tmp_path / "run"
+    shutil.copytree(dam, out)
+    (out / "bodies.pvd").write_text((out / "fluid.pvd").read_text())  # stands in for a moving wall's series
+    (out / "surface.pvd").write_text((out / "fluid.pvd").read_text())
+    files = view_settings(out)["files"]
+    assert files["bodies"] == "bodies.pvd" and files["surface"] == "surface.pvd"
 
 
 def test_paraview_command_rewrites_an_older_folder(dam, tmp_path, capsys):

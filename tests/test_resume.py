@@ -14,7 +14,7 @@ import pytest
 
 import ipsph
 from ipsph import cli
-from ipsph.io.folder import RunFolder
+from ipsph.run_folder import RunFolder
 from ipsph.io import RUN_JSON, RUN_PVD, STATS_CSV, vtu
 from ipsph.io.pvd import PvdSeries
 from ipsph.io.stats import read_stats
@@ -125,8 +125,10 @@ def test_checkpoint_from_a_modified_scene_is_refused(stopped, capsys):
 
 
 def test_checkpoint_from_another_version_is_refused(stopped, capsys, monkeypatch):
+    from ipsph import _version
+
     written_by = ipsph.__version__
-    monkeypatch.setattr(ipsph, "__version__", "99.0.0")
+    monkeypatch.setattr(_version, "__version__", "99.0.0")  # where every module reads it
     code, err = run_cli(capsys, stopped, "--end-time", str(T), "--resume")
     assert code == 2 and f"written by ipsph {written_by}, this is 99.0.0" in err, err
 

@@ -11,6 +11,9 @@ import numpy as np
 import pytest
 
 from ipsph import inside, meshes, model, sampling
+from ipsph.boundary import MODELS as WALL_MODELS
+from ipsph.boundary.models import CONTAINER_OFFSET_D
+from ipsph.boundary.sampling import boundary_positions
 from ipsph.errors import ConfigError, MeshError
 
 pv = pytest.importorskip("pyvista")
@@ -18,6 +21,11 @@ from pyvista import examples  # noqa: E402
 
 MODELS = Path(__file__).resolve().parents[1] / "meshes"  # shipped with the repository (meshes/PROVENANCE.md)
 R = 0.025
+
+
+def wall_layer(spec, r, **kw):
+    """The default wall model's layer for one boundary."""
+    return WALL_MODELS["akinci-volume"].samples(spec, r, **kw)
 
 
 @pytest.fixture(autouse=True)
@@ -143,9 +151,13 @@ def test_fluid_mesh_lattice_is_centred_and_deterministic(tmp_path):
     meshes.box_mesh((0.0, 0.0, 0.0), (0.5, 0.3, 0.2)).save(path)
     spec = model.FluidSpec("b", "mesh", mesh=path, transform=model.Transform(translate=(1.0, 2.0, 3.0)))
     a = sampling.fluid_positions(spec, R, cache=False)
-    b = sampling.fluid_positions(spec, R, cache=False)
-    np.testing.assert_array_equal(a, b)
     assert len(a) == 10 * 6 * 4  # count · d³ = 0.03 m³, the box volume
+    # the lattice itself, built here independently: d/2 from each face of the translated box
+    d = 2 * R
+    axes = [lo + d / 2 + d * np.arange(n) for lo, n in zip((1.0, 2.0, 3.0), (10, 6, 4))]
+    want = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    order = lambda p: p[np.lexsort(np.round(p / d).T[::-1])]  # noqa: E731 - by lattice index
+    np.testing.assert_allclose(order(a), order(want), atol=1e-12)
     np.testing.assert_allclose(a.min(axis=0), (1.025, 2.025, 3.025), atol=1e-12)
     np.testing.assert_allclose(a.mean(axis=0), (1.25, 2.15, 3.1), atol=1e-12)
 
@@ -175,12 +187,12 @@ def test_dambreak_container_unitbox_is_a_box_grid():
         mesh=MODELS / "UnitBox.obj",
         transform=model.Transform(translate=(0.0, 1.5, 0.0), scale=(4.0, 3.0, 1.5)),
     )
-    y = sampling.boundary_positions(spec, R)
+    y = wall_layer(spec, R)
     # the grid lies on the box grown by e = 0.1 d (method.md section 1): n = ceil((edge + 2e) / 1.5r)
     # intervals = 107, 81, 41: (108·82·42) − (106·80·40) = 32,752
-    e = sampling.BOX_WALL_OFFSET_FACTOR * 2 * R
+    e = CONTAINER_OFFSET_D * 2 * R
     assert len(y) == 32_752
-    same = sampling.boundary_positions(wall_box((-2.0, 0.0, -0.75), (2.0, 3.0, 0.75)), R)
+    same = wall_layer(wall_box((-2.0, 0.0, -0.75), (2.0, 3.0, 0.75)), R)
     np.testing.assert_allclose(y, same, atol=1e-12)
     lo, mean, hi = spacing_stats(y, R)
     assert lo >= 0.5 and hi <= 1.5 + 1e-9
@@ -196,8 +208,8 @@ def test_box_boundary_coverage_and_spacing():
     # particle's 2r. We assert the grid's own bound s_max/√2 (sampled surface points: ≤ bound).
     # (on the surface the grid lies on: the box grown by 0.1 d, method.md section 1)
     lo, hi = (0.0, 0.0, 0.0), (0.7, 0.45, 0.3)
-    y = sampling.boundary_positions(wall_box(lo, hi), R)
-    e = sampling.BOX_WALL_OFFSET_FACTOR * 2 * R
+    y = wall_layer(wall_box(lo, hi), R)
+    e = CONTAINER_OFFSET_D * 2 * R
     lo, hi = tuple(np.subtract(lo, e)), tuple(np.add(hi, e))
     s = np.max(np.subtract(hi, lo) / np.ceil(np.subtract(hi, lo) / (1.5 * R)))
     assert box_coverage(y, lo, hi, R) <= s / math.sqrt(2) / R + 1e-9
@@ -206,8 +218,8 @@ def test_box_boundary_coverage_and_spacing():
 
 def test_rotated_box_boundary_rotates_the_grid():
     t = model.Transform(translate=(0.0, 1.0, 0.0), rotate_axis=(1.0, 1.0, 0.0), rotate_deg=30.0)
-    plain = sampling.boundary_positions(wall_box((0, 0, 0), (0.5, 0.4, 0.3)), R)
-    rotated = sampling.boundary_positions(wall_box((0, 0, 0), (0.5, 0.4, 0.3), transform=t), R)
+    plain = wall_layer(wall_box((0, 0, 0), (0.5, 0.4, 0.3)), R)
+    rotated = wall_layer(wall_box((0, 0, 0), (0.5, 0.4, 0.3), transform=t), R)
     np.testing.assert_allclose(rotated, meshes.transform_points(plain, t), atol=1e-12)
 
 
@@ -218,7 +230,7 @@ def test_mesh_boundary_spacing_and_coverage(tmp_path, loader, scale, r):
     spec = model.BoundarySpec(
         loader, "mesh", mesh=path, role=model.Role.OBSTACLE, transform=model.Transform(scale=(scale,) * 3)
     )
-    y = sampling.boundary_positions(spec, r)
+    y = boundary_positions(spec, r, 0.0)  # the surface sampler itself (no layer offset)
     lo, mean, hi = spacing_stats(y, r)
     # greedy Poisson disk of radius r: nearest neighbour >= r (>= 0.5 r asked), mean ~1.07 r
     assert lo >= 1.0 - 1e-9 and mean < 1.25
@@ -237,7 +249,7 @@ def test_mesh_boundary_keeps_sharp_corners(tmp_path):
     mesh = meshes.transform_mesh(meshes.load_mesh(path), t)
     path2 = tmp_path / "rotated.vtp"
     mesh.save(path2)
-    y = sampling.boundary_positions(model.BoundarySpec("b", "mesh", mesh=path2), R)
+    y = wall_layer(model.BoundarySpec("b", "mesh", mesh=path2), R)
     for corner in mesh.points:
         assert np.min(np.linalg.norm(y - corner, axis=1)) < 1e-12
     assert spacing_stats(y, R)[0] >= 1.0 - 1e-9
@@ -252,9 +264,9 @@ def test_dragon_boundary_is_deterministic_closed_and_covered():
         transform=model.Transform(translate=(1.5, 0.0, -0.75)),
     )
     t0 = time.perf_counter()
-    a = sampling.boundary_positions(spec, R, cache=False)
+    a = boundary_positions(spec, R, 0.0, cache=False)  # the surface sampler itself
     t1 = time.perf_counter()
-    b = sampling.boundary_positions(spec, R, cache=False)
+    b = boundary_positions(spec, R, 0.0, cache=False)
     print(f"dragon: {len(a)} boundary particles, {t1 - t0:.2f} s then {time.perf_counter() - t1:.2f} s")
     np.testing.assert_array_equal(a, b)
     lo, mean, hi = spacing_stats(a, R)
@@ -281,7 +293,7 @@ def test_solid_mask_container_and_obstacle(tmp_path):
 
 def test_remove_overlaps_counts():
     tank = wall_box((-2.0, 0.0, -0.75), (2.0, 3.0, 0.75))
-    walls = sampling.boundary_positions(tank, R)
+    walls = wall_layer(tank, R)
     md = sampling.default_overlap_distance(R)
     # the DamBreakModel block: first layer 0.1 m from the walls, nothing removed
     block = sampling.fluid_positions(

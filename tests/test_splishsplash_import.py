@@ -68,7 +68,7 @@ def test_current_layout_solver_blocks_are_mapped():
     assert (s.standard_viscosity, s.viscosity) == (0.01, 0.0)  # its Standard model, no XSPH on top
     w = s.warnings[0]
     assert "numberOfStepsPerRenderUpdate" in w and "particleAttributes" in w
-    assert "boundaryHandlingMethod=2 (ipsph always uses Akinci et al. 2012" in w
+    assert "boundaryHandlingMethod=2 (every value maps to simulation.boundary_model = akinci-volume" in w
     assert "mapResolution" in w and "RigidBodies[0].color" in w
     assert "viscosityMethod=1 (Standard): simulation.standard_viscosity = 0.01 m^2/s, XSPH off" in w
 

@@ -139,7 +139,7 @@ def test_docs_summary_table_is_generated_from_the_columns():
 
 
 def test_bench_sweep_table_leaves_loaded_repeats_out():
-    from ipsph.benchmark.sweep_bench import table
+    from benchmarks.sweep_bench import table
 
     def row(wall, seq, loaded):
         return {

@@ -129,7 +129,8 @@ THICK_NU = 0.5
 
 def test_thick_fluid_steps_within_the_viscous_limit_and_stays_calm():
     from ipsph.scene import scene_from_dict
-    from ipsph.simulation import VISCOUS_STEP, Simulation
+    from ipsph.params import VISCOUS_STEP
+    from ipsph.simulation import Simulation
 
     scene = scene_from_dict(
         {

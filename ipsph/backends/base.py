@@ -3,13 +3,15 @@
 A `Backend` owns the particle and scratch arrays (allocation, host transfer), every
 per-particle pass (their bodies are written once, in `bodies`) and the few vector operations a
 step needs. A method holds a backend and calls only these; it never touches particle arrays with
-numpy, so the same method code runs on any backend. `CPUBackend` (`cpu.py`, Numba `prange`) is
-the one backend today; a GPU backend subclasses `Backend`, launches the same bodies as CUDA
-device functions, and is registered in `ipsph.backends.BACKENDS`.
+numpy, so the same method code runs on any backend. Two are registered in
+`ipsph.backends.BACKENDS`: `CPUBackend` (`cpu.py`, Numba `prange` over the bodies) and
+`CUDABackend` (`cuda.py`, the same bodies as CUDA device functions). Each backend's neighbour
+search is `ipsph.neighbours.search_for(backend, ...)`.
 
-Conventions every backend keeps: float64 arrays, particles along the first axis; passes write
-index i from the work item of particle i only (no atomics); reductions in a fixed order, so the
-same inputs give the same bits whatever the thread count. Pass arguments mirror the launchers in
+Conventions every backend keeps: particles along the first axis; real arrays in the backend's
+precision (float64 on the CPU; float64 or float32 on CUDA); passes write index i from the work
+item of particle i only (no atomics); reductions in a fixed order, so the same inputs give the
+same bits whatever the thread count. Pass arguments mirror the launchers in
 `cpu_passes`; `nl` is the current `NeighbourLists`, `walls` the `Boundary`, `dens` a `Densities`.
 """
 
@@ -154,10 +156,6 @@ class Backend:
         raise NotImplementedError
 
     def warm_stiffness(self, k_total, scale, rate, n_nbrs, min_nbrs, warm) -> None:
-        raise NotImplementedError
-
-    # -- neighbour search ---------------------------------------------------------------------------
-    def neighbour_search(self, support: float, boundary):
         raise NotImplementedError
 
     # -- timing -------------------------------------------------------------------------------------

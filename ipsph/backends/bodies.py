@@ -23,9 +23,13 @@ import math
 
 from numba import njit
 
-from ..kernels import grad_w_factor, w
+from ..kernels import FASTMATH, grad_w_factor, w
 
-FAST = {"contract", "arcp", "reassoc"}  # no nnan/ninf: NaN checks keep working
+FAST = FASTMATH  # the one fastmath set (kernels.FASTMATH)
+
+# The warm starts and the divergence residual skip particles with fewer fluid + wall neighbours
+# (too few to trust their density rate: method.md section 2).
+MIN_NEIGHBOURS_WARM = 20
 
 # buffer rows: x_ij components, then per-neighbour scalars
 DX, DY, DZ, C0, C1, C2, C3, C4, C5 = 0, 1, 2, 3, 4, 5, 6, 7, 8
@@ -223,9 +227,9 @@ def density_rate_at(i, x, v, mf, gb, gvb, nf, cf, pair_grad, cached, h, buf):
 @njit(inline="always", fastmath=FAST)
 def divergence_residual_at(i, x, v, mf, gb, gvb, nf, cf, pair_grad, cached, h, alpha, n_nbrs, dt, buf, drho, k):
     """Divergence-solve residual and stiffness [BK17 Alg. 2]:
-    drho_i = max(D rho_i/Dt, 0), zero for particles with < 20 neighbours; k_i = alpha_i drho_i / dt."""
+    drho_i = max(D rho_i/Dt, 0), zero for particles with < MIN_NEIGHBOURS_WARM neighbours; k_i = alpha_i drho_i / dt."""
     d = 0.0
-    if n_nbrs[i] >= 20:
+    if n_nbrs[i] >= MIN_NEIGHBOURS_WARM:
         d = max(density_rate_at(i, x, v, mf, gb, gvb, nf, cf, pair_grad, cached, h, buf), 0.0)
     drho[i] = d
     k[i] = alpha[i] * d / dt

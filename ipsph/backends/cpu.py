@@ -168,9 +168,3 @@ class CPUBackend(Backend):
 
     def warm_stiffness(self, k_total, scale, rate, n_nbrs, min_nbrs, warm):
         P.warm_stiffness(k_total, scale, self._every_particle if rate is None else rate, n_nbrs, min_nbrs, warm)
-
-    # -- neighbour search ---------------------------------------------------------------------------
-    def neighbour_search(self, support, boundary):
-        from ..neighbours import NeighbourSearch
-
-        return NeighbourSearch(support, boundary)

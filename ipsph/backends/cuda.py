@@ -1,5 +1,5 @@
 """The CUDA backend: particle arrays on an NVIDIA GPU, the passes of `cuda_passes` (the bodies of
-`bodies` as device functions), the neighbour search of `cuda_neighbours`, fixed-order reductions.
+`bodies` as device functions), fixed-order reductions (its neighbour search: `ipsph.neighbours.cuda`).
 
     be = get_backend("cuda", precision="float32", device=0)
 
@@ -39,7 +39,9 @@ class CUDABackend(Backend):
         self.precision = precision
         self.device = device
         self.real = np.dtype(precision)
-        self.reducer = P.Reducer()
+        from .cuda_reduce import Reducer
+
+        self.reducer = Reducer()
         self.NO_PAIRS = self._new((0, 3, 0), self.real)
         self.NO_DISPLACEMENT = self._new((0, 3), self.real)
         self._every_particle = self._new((0,), self.real)
@@ -323,12 +325,6 @@ class CUDABackend(Backend):
             min_nbrs,
             warm,
         )
-
-    # -- neighbour search ---------------------------------------------------------------------------
-    def neighbour_search(self, support, boundary):
-        from .cuda_neighbours import CUDANeighbourSearch
-
-        return CUDANeighbourSearch(support, boundary, self)
 
     def synchronize(self):
         _cuda.cuda.synchronize()

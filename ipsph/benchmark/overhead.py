@@ -1,5 +1,5 @@
 """What a side process costs the default scene's `ipsph run`: runs without and with it, alternating
-in fresh processes (`ipsph bench --render-overhead`, `--surface-overhead`), median of pair ratios."""
+in fresh processes (`ipsph bench --surface-overhead`, `python -m benchmarks render-overhead`), median of pair ratios."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import statistics
 import tempfile
 from pathlib import Path
 
-TARGET = 0.25  # a side process may slow the default scene's run by at most 25 % (issues 4, 20)
+TARGET = 0.25  # a side process (renders, surfaces) may slow the default scene's run by at most 25 %
 
 
 def default_run(args: list[str], out: Path, threads: int, timeout: float, check) -> dict:

@@ -6,12 +6,13 @@ used more than ``max_load`` cores on average while it ran (``others_busy_mean * 
 :class:`ipsph.benchmark.machine.LoadSampler`; our own worker's threads are not counted, so this is
 "mean load > threads + max_load" without the 1-minute lag of the load average). Loaded runs are
 printed, marked, and left out of the medians.
+
+The tables of one mode sit beside it: `scaling.py` (--scaling), `first_frame.py` (--first-frame).
 """
 
 from __future__ import annotations
 
 import math
-import statistics
 from collections import OrderedDict
 
 from ..params import PHASES
@@ -24,9 +25,6 @@ __all__ = [
     "format_table",
     "scene_tables",
     "ratio_lines",
-    "scaling_table",
-    "first_frame_table",
-    "table1",
     "PHASE_SHORT",
 ]
 
@@ -334,196 +332,3 @@ def _round_ratios(ours: list[dict], peer: list[dict], q: int = 2) -> str:
         return ""
     fastest = min(a.values()) / min(b.values())
     return f"; same round {' '.join(f'{x:.{q}f}' for x in pairs)}, fastest/fastest {fastest:.{q}f}x"
-
-
-SCALING_HEADERS = [
-    "method",
-    "fluid",
-    "boundary",
-    "timed steps",
-    "ms/step (median)",
-    "us / fluid particle-step",
-    "iterations (pressure / divergence)",
-    "density err mean %",
-    "bytes / particle (RSS)",
-    "bytes / particle (solver arrays)",
-    "of which pair cache",
-    "peak RSS MB",
-    "setup s",
-    "load (others' cores)",
-]
-
-
-def scaling_table(rows: list[dict], markdown: bool, max_load: float) -> str:
-    body = []
-    for r in rows:
-        if r.get("error"):
-            body.append(
-                [r["label"], _int(r.get("target")), "—", "—", "failed: " + r["error"].splitlines()[0]]
-                + ["—"] * (len(SCALING_HEADERS) - 5)
-            )
-            continue
-        label = r["label"] + (" [loaded]" if is_loaded(r, max_load) else "")
-        body.append(
-            [
-                label,
-                _int(r.get("fluid")),
-                _int(r.get("boundary")),
-                _int(r.get("timed_steps")),
-                _num(r.get("ms_step")),
-                _num(r.get("us_particle_step"), "{:.3f}"),
-                f"{_num(r.get('iters_mean'), '{:.1f}')} / {_num(r.get('div_iters_mean'), '{:.1f}')}",
-                _num(r.get("err_mean"), "{:.2g}"),
-                _num(r.get("bytes_rss"), "{:.0f}"),
-                _num(r.get("bytes_solver"), "{:.0f}"),
-                _num(r.get("bytes_pair_cache"), "{:.0f}"),
-                _num(r.get("rss_mb"), "{:.0f}"),
-                _num(r.get("setup_s"), "{:.1f}"),
-                _num(r.get("others_cores")),
-            ]
-        )
-    return format_table(SCALING_HEADERS, body, markdown)
-
-
-def backend_scaling_table(rows: list[dict], markdown: bool, max_load: float) -> str:
-    """`ipsph bench --backend cuda --scaling ...`: each size on the GPU and (where it can) the CPU:
-    ms per step and per phase, ns per fluid particle-step, bytes per fluid particle (the solver's
-    arrays: device arrays for cuda; and what the device's free memory dropped by), wall seconds per
-    simulated second, the density error."""
-    phases = [p for p in PHASE_SHORT if any(p in (r.get("phases") or {}) for r in rows if not r.get("error"))]
-    headers = (
-        ["backend", "method", "fluid", "timed steps", "ms/step (median)"]
-        + [f"ms {PHASE_SHORT[p]}" for p in phases]
-        + [
-            "ns / fluid particle-step",
-            "bytes / particle (arrays)",
-            "bytes / particle (device used)",
-            "wall s / simulated s",
-            "density err mean %",
-            "load (others' cores)",
-        ]
-    )
-    body = []
-    for r in rows:
-        where = f"{r.get('backend', '?')} {r.get('precision', '')}".strip()
-        if r.get("error"):
-            body.append(
-                [where, r["label"], _int(r.get("target")), "—", "failed: " + r["error"].splitlines()[0]]
-                + ["—"] * (len(headers) - 5)
-            )
-            continue
-        label = r["label"] + (" [loaded]" if is_loaded(r, max_load) else "")
-        ph = r.get("phases") or {}
-        body.append(
-            [where, label, _int(r.get("fluid")), _int(r.get("timed_steps")), _num(r.get("ms_step"))]
-            + [_num(ph.get(p)) for p in phases]
-            + [
-                _num(r.get("ns_particle_step"), "{:.1f}"),
-                _num(r.get("bytes_solver"), "{:.0f}"),
-                _num(r.get("bytes_device_used"), "{:.0f}"),
-                _num(r.get("wall_per_sim"), "{:.1f}"),
-                _num(r.get("err_mean"), "{:.2g}"),
-                _num(r.get("others_cores")),
-            ]
-        )
-    return format_table(headers, body, markdown)
-
-
-def first_frame_table(rows: list[dict], markdown: bool, target: dict | float = 5.0) -> str:
-    """Seconds from `ipsph run` starting to its first frame written, split by the run's own run.json
-    (its clock starts at the process's creation): launching and exiting the process, setup without
-    compiling, Numba compiling, stepping; each run and the medians."""
-    targets = target if isinstance(target, dict) else {"warm": float(target)}
-
-    def cells(r):
-        secs = _f(r.get("seconds"))
-        sp = r.get("split") or {}
-        total, setup, comp, step = (_f(sp.get(k)) for k in ("total", "setup", "compile", "stepping"))
-        start = secs - total if not math.isnan(total) else math.nan
-        return [secs, start, setup, comp, step]
-
-    body = []
-    for cache in ("cold", "warm"):
-        group = [r for r in rows if r.get("cache") == cache]
-        for r in group:
-            body.append(
-                [f"{cache} (run {r.get('repeat', 0) + 1})"]
-                + [_num(v) for v in cells(r)]
-                + ["yes" if r.get("ok") else f"no (exit {r.get('exit_code')})", _num(r.get("others_cores")), ""]
-            )
-        ok = [r for r in group if r.get("ok")]
-        if ok:
-            med = [statistics.median(c) for c in zip(*(cells(r) for r in ok))]
-            goal = targets.get(cache)
-            verdict = "" if goal is None else ("meets" if med[0] <= goal else "misses") + f" {goal:g} s"
-            body.append(
-                [f"**{cache}: median of {len(ok)}**" if markdown else f"{cache}: median of {len(ok)}"]
-                + [_num(v) for v in med]
-                + ["", _num(statistics.median(_f(r.get("others_cores")) for r in ok)), verdict]
-            )
-    return format_table(
-        [
-            "numba cache",
-            "seconds to first frame",
-            "process launch + exit",
-            "setup (imports, scene, sampling; no compiling)",
-            "Numba compiling",
-            "stepping",
-            "ok",
-            "load (others' cores)",
-            "target",
-        ],
-        body,
-        markdown,
-    )
-
-
-TABLE1_HEADERS = [
-    "scene (fluid particles)",
-    "method",
-    "steps",
-    "avg divergenceSolve ms",
-    "avg solvePDConstraints ms",
-    "avg densitySolve ms",
-    "avg ms / step",
-    "s wall / sim s",
-    "density err mean %",
-    "worst %",
-]
-
-
-def _table1_row(scene: str, label: str, r: dict) -> list[str]:
-    ph = r.get("phases_mean") or {}
-    return [
-        f"{scene} ({_int(r.get('fluid'))})",
-        label,
-        _int(r.get("steps")),
-        _num(ph.get("divergenceSolve")),
-        _num(ph.get("solvePDConstraints")),
-        _num(ph.get("densitySolve")),
-        _num(r.get("ms_step_mean")),
-        _num(r.get("wall_per_sim")),
-        _num(r.get("err_mean"), "{:.3f}"),
-        _num(r.get("err_worst"), "{:.3f}"),
-    ]
-
-
-def table1(groups, markdown: bool) -> str:
-    """Issue 5: the paper's Table 1 columns (averages) per scene and method: the median of the quiet
-    runs, then each loaded run (marked, not counted); failed runs become notes."""
-    body, notes = [], []
-    for (scene, label), g in groups.items():
-        if g["median"] is not None:
-            body.append(
-                _table1_row(
-                    scene, label + (f" (median of {len(g['quiet'])})" if len(g["quiet"]) > 1 else ""), g["median"]
-                )
-            )
-        for r in g["loaded"]:
-            body.append(_table1_row(scene, f"{label} [loaded, run {r.get('repeat', 0) + 1}]", r))
-        for r in g["failed"]:
-            notes.append(f"{scene} {label} run {r.get('repeat', 0) + 1} failed: {r['error'].splitlines()[0]}")
-    text = format_table(TABLE1_HEADERS, body, markdown)
-    if notes:
-        text += "\n\n" + "\n".join(("- " if markdown else "") + "note: " + n for n in notes)
-    return text

@@ -1,4 +1,4 @@
-"""What surfaces cost (issue 20).
+"""What surfaces cost.
 
     ipsph bench --surface-sizes 1000000 --repeats 3   # seconds per reconstruction of a jittered N lattice
     ipsph bench --surface-overhead --repeats 5        # the default scene's `ipsph run`, with and without --surface
@@ -11,7 +11,7 @@ load on the machine while it ran.
 
 Overhead: `ipsph run` of the built-in default scene in fresh processes, alternating the plain run and
 the run with --surface (the surface process beside the solver), both with their usual renders, R times
-each; medians of wall time and their ratio, the figure the issue's "surfaces add at most 25 %" is about.
+each; medians of wall time and their ratio, the figure the target "surfaces add at most 25 %" is about.
 A pair during which other processes kept more than --max-load cores busy is shown as loaded and left
 out of the medians.
 """
@@ -27,7 +27,7 @@ from pathlib import Path
 
 from . import overhead
 
-SECONDS_TARGET = 10.0  # a 1M-particle frame in at most 10 s on 2 cores (issue 20)
+SECONDS_TARGET = 10.0  # a 1M-particle frame in at most 10 s on 2 cores
 
 _ONE = r"""
 import json, resource, sys, time

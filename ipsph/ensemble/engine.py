@@ -19,22 +19,27 @@ to write a checkpoint and stop, records them as interrupted and exits 130.
 
 from __future__ import annotations
 
-import logging
-import os
-import shutil
 import sys
 import time
 import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..errors import EXIT_INTERRUPTED, InputError, OutputError
-from ..io import check_writable
+from ..errors import EXIT_ERROR, EXIT_INTERRUPTED, InputError
 from . import member as mem
 from . import records
-from .spec import Sweep, load_sweep, validate
+from .cluster import (
+    _dashboard,
+    _need_distributed,
+    _scheduler_info,
+    check_shared_folder,
+    local_layout,
+    start_local_cluster,
+)
+from .plan import plan, prepare
+from .spec import load_sweep, validate
 
-EXIT_MEMBERS_FAILED = 1
+EXIT_MEMBERS_FAILED = EXIT_ERROR
 DEFAULT_DASHBOARD = "127.0.0.1:8787"
 
 
@@ -57,198 +62,6 @@ class SweepOptions:
 def _log(msg: str, opts: SweepOptions | None = None) -> None:
     if opts is None or opts.progress:
         print(f"ipsph sweep: {msg}", file=sys.stderr, flush=True)
-
-
-def usable_cores() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not Linux
-        return os.cpu_count() or 1
-
-
-def local_layout(workers: int | None, threads: int | None) -> tuple[int, int]:
-    """(workers, threads per worker) of a LocalCluster: the given ones, the rest from the machine's cores."""
-    cores = usable_cores()
-    if workers is not None and workers < 1:
-        raise InputError(f"--workers {workers}: must be >= 1")
-    if threads is not None and threads < 1:
-        raise InputError(f"--threads-per-worker {threads}: must be >= 1")
-    if threads is None:
-        threads = max(1, cores // workers) if workers else 1
-    if workers is None:
-        workers = max(1, cores // threads)
-    return workers, threads
-
-
-def _need_distributed() -> None:
-    try:
-        import distributed  # noqa: F401
-    except ImportError as exc:
-        raise InputError(
-            "ipsph sweep needs Dask distributed, which is not installed: "
-            "pip install 'ipsph[sweep]' (or pip install distributed)"
-        ) from exc
-
-
-# -- the output folder -------------------------------------------------------------------------
-def _member_entry(sweep: Sweep, m) -> dict:
-    return {
-        "name": m.name,
-        "folder": m.name,
-        "parameters": m.params(),
-        "varied": dict(m.varied),
-        "status": "pending",
-        "exit_code": None,
-        "reason": None,
-        "wall_seconds": None,
-        "threads": None,
-        "host": None,
-        "attempts": 0,
-    }
-
-
-def plan(sweep: Sweep, out: Path, resume: bool, overwrite: bool) -> tuple[list[dict], list[str]]:
-    """(records of every member, names of the members to run); raises OutputError (exit 2) on a conflict.
-
-    Creates nothing and deletes nothing (see `prepare`)."""
-    if out.exists() and not out.is_dir():
-        raise OutputError(f"output folder {out} (resolved {out.resolve()}) is a file; choose another -o")
-    fresh = {m.name: _member_entry(sweep, m) for m in sweep.members}
-    old = records.read_sweep_json(out) if out.is_dir() else None
-    if (out / records.SWEEP_JSON).exists() and old is None and not overwrite:
-        raise OutputError(f"{out / records.SWEEP_JSON} cannot be read; pass --overwrite to start the sweep afresh")
-    if old is not None and not overwrite:
-        old_members = {r["name"]: r for r in old.get("members", [])}
-        why = None
-        if old.get("scene") != str(sweep.scene):
-            why = f"its base scene was {old.get('scene')}, now {sweep.scene}"
-        elif set(old_members) != set(fresh):
-            gone = sorted(set(old_members) - set(fresh))
-            new = sorted(set(fresh) - set(old_members))
-            why = "members " + ", ".join([f"{n} removed" for n in gone[:2]] + [f"{n} added" for n in new[:2]])
-        else:
-            for n, r in fresh.items():
-                if old_members[n].get("parameters") != records.to_jsonable(r["parameters"]):
-                    why = f"member {n} has other parameters"
-                    break
-        if why:
-            raise OutputError(
-                f"{out} holds a different sweep ({why}); pass --overwrite to replace it or choose another -o"
-            )
-        recs = []
-        for n, r in fresh.items():
-            o = old_members[n]
-            r.update(
-                {
-                    k: o.get(k)
-                    for k in ("status", "exit_code", "reason", "wall_seconds", "threads", "host", "attempts", "resumed")
-                }
-            )
-            recs.append(r)
-    else:
-        recs = list(fresh.values())
-        if not overwrite:
-            for r in recs:
-                if (out / r["name"] / "run.json").exists():
-                    raise OutputError(
-                        f"{out / r['name']} holds an earlier run that is not part of a sweep in "
-                        f"{out}; pass --overwrite to replace it or choose another -o"
-                    )
-    if overwrite:
-        for r in recs:
-            r.update(_member_entry(sweep, next(m for m in sweep.members if m.name == r["name"])))
-        return recs, [r["name"] for r in recs]
-    todo = []
-    for r in recs:
-        if mem.folder_state(out / r["name"]) == "completed":
-            r["status"] = "completed"
-        else:
-            if r["status"] in ("completed", "running"):
-                r["status"] = "pending"
-            todo.append(r["name"])
-    if old is not None and todo and len(todo) < len(recs) and not resume:
-        raise OutputError(
-            f"{out} holds an unfinished sweep ({len(recs) - len(todo)} of {len(recs)} members "
-            f"completed); pass --resume to run the other {len(todo)}, or --overwrite to start afresh"
-        )
-    if (
-        old is not None
-        and todo
-        and len(todo) == len(recs)
-        and not resume
-        and any(mem.folder_state(out / n) != "empty" for n in todo)
-    ):
-        raise OutputError(
-            f"{out} holds an unfinished sweep (no member completed); pass --resume to continue "
-            f"it, or --overwrite to start afresh"
-        )
-    return recs, todo
-
-
-def prepare(sweep: Sweep, out: Path, overwrite: bool, recs: list[dict], old: dict | None) -> None:
-    """Create OUT (checking it is writable); with --overwrite delete the earlier sweep's member folders."""
-    check_writable(out)
-    if overwrite:
-        names = {r["name"] for r in recs} | {r["name"] for r in (old or {}).get("members", [])}
-        for n in names:
-            if n and "/" not in n and n not in (".", ".."):
-                shutil.rmtree(out / n, ignore_errors=True)
-        for f in (records.SWEEP_JSON, records.SUMMARY_CSV):
-            (out / f).unlink(missing_ok=True)
-
-
-# -- the cluster -------------------------------------------------------------------------------
-def start_local_cluster(workers: int, threads: int, dashboard_address: str):
-    """A LocalCluster listening on 127.0.0.1 only; each worker offers one member slot (RESOURCE)."""
-    from distributed import LocalCluster
-
-    return LocalCluster(
-        n_workers=workers,
-        threads_per_worker=threads,
-        processes=True,
-        host="127.0.0.1",
-        dashboard_address=dashboard_address,
-        worker_dashboard_address=None,
-        resources={mem.RESOURCE: 1},
-        memory_limit=0,
-        silence_logs=logging.ERROR,
-        preload=["ipsph.ensemble._worker_setup"],
-    )
-
-
-def check_shared_folder(client, out: Path) -> None:
-    """Every worker must read a probe file written here and write one beside it (OutputError if not)."""
-    token = uuid.uuid4().hex
-    probe = out / f".sweep-probe-{token}"
-    probe.write_text(token)
-    try:
-        answers = client.run(mem.probe_folder, str(probe), token, on_error="return")
-    finally:
-        probe.unlink(missing_ok=True)
-        for f in out.glob(f".sweep-probe-{token}.*"):
-            f.unlink(missing_ok=True)
-    bad = {a: r for a, r in answers.items() if r is not True}
-    if bad:
-        addr, why = next(iter(bad.items()))
-        raise OutputError(
-            f"{len(bad)} of {len(answers)} workers cannot use {out.resolve()} ({addr}: {why}); "
-            f"the sweep's output folder must be on a filesystem every worker shares, "
-            f"at the same path"
-        )
-
-
-def _scheduler_info(client, n_workers: int) -> dict:
-    try:  # distributed >= 2025.1 lists only 5 workers unless told
-        return client.scheduler_info(n_workers=n_workers)
-    except TypeError:
-        return client.scheduler_info()
-
-
-def _dashboard(client) -> str | None:
-    info = _scheduler_info(client, 0)
-    if "dashboard" not in info.get("services", {}):
-        return None
-    return client.dashboard_link
 
 
 # -- progress ----------------------------------------------------------------------------------
@@ -314,7 +127,7 @@ def run_sweep(sweep_file: str | Path, opts: SweepOptions) -> tuple[int, list[dic
     out_abs = out.resolve()
     varied = [k for k, _ in sweep.grid] + [k for k, _ in sweep.zipped]
     params = {r["name"]: r["parameters"] for r in recs}
-    timings = {"validate": time.perf_counter() - t_begin}  # seconds per phase (ipsph bench --sweep reads them)
+    timings = {"validate": time.perf_counter() - t_begin}  # seconds per phase (python -m benchmarks sweep reads them)
     info = {
         **sweep.as_dict(),
         "out": str(out_abs),

@@ -182,7 +182,7 @@ def _child(
     cmd = [
         sys.executable,
         "-m",
-        "ipsph.ensemble._child",
+        "ipsph",
         "run",
         str(job["scene"]),
         "-o",

@@ -64,6 +64,7 @@ SURFACES_DIR = "surfaces"
 PARAVIEW_SCRIPT = "paraview_view.py"
 BODIES_DIR = "bodies"
 BODIES_CSV = "bodies.csv"
+CHECKPOINT_FILE = "checkpoint.npz"
 
 
 @dataclass(frozen=True)

@@ -4,7 +4,7 @@ per frame, OUT/bodies/bodies_NNNNNN.vtp, the `bodies` part of run.pvd (docs/outp
 A moving wall is a kinematic [[boundary]] (a `motion`) or a dynamic rigid body (a density or
 mass). Its row: the centre (a body's centre of mass; a kinematic wall's pivot), the orientation
 quaternion, the centre's velocity and the fluid's force and torque on it (about that centre) in
-the step just finished (ipsph.rigid).
+the step just finished (ipsph.boundary.rigid).
 """
 
 from __future__ import annotations

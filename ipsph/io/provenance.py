@@ -73,7 +73,7 @@ def versions() -> dict:
         except metadata.PackageNotFoundError:
             out[name] = None
     if out["ipsph"] is None:
-        from .. import __version__
+        from .._version import __version__
 
         out["ipsph"] = __version__
     out["platform"] = platform.platform()

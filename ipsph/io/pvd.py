@@ -13,6 +13,7 @@ valid series.
 from __future__ import annotations
 
 import os
+import re
 import xml.etree.ElementTree as ET
 from pathlib import Path, PurePosixPath
 
@@ -169,3 +170,9 @@ class PvdSeries:
 
 def _attr(s: str) -> str:
     return s.replace("&", "&amp;").replace('"', "&quot;").replace("<", "&lt;")
+
+
+def frame_index(file: str, position: int) -> int:
+    """The frame number in a frame file's name (`frames/particles_0012.vtu` -> 12), else its position."""
+    m = re.search(r"(\d+)\.vtu$", file)
+    return int(m.group(1)) if m else position

@@ -172,3 +172,16 @@ def read_particles(path: str | os.PathLike) -> tuple[np.ndarray, dict[str, np.nd
     tv = grid.GetFieldData().GetArray("TimeValue")
     time = float(tv.GetValue(0)) if tv is not None and tv.GetNumberOfTuples() else None
     return points, fields, time
+
+
+def read_surface(path):
+    """The boundary surface (.vtp) the run wrote, or None; plain VTK (no pyvista import, ~0.35 s)."""
+    path = Path(path)
+    if not path.is_file():
+        return None
+    from vtkmodules.vtkIOXML import vtkXMLPolyDataReader
+
+    reader = vtkXMLPolyDataReader()
+    reader.SetFileName(str(path))
+    reader.Update()
+    return reader.GetOutput()

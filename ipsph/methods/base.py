@@ -16,7 +16,6 @@ from types import SimpleNamespace
 from ..backends import Backend
 from ..boundary import Boundary
 from ..model import Scene
-from ..params import support
 from ..particles import ParticleState
 
 PAIR_CACHE_BYTES = 24  # per neighbour-list slot: mf grad W_ij, three float64
@@ -103,7 +102,7 @@ class Method:
         self.search = search
         self.be = be
         self.cfg = scene.solver
-        self.fluid = Fluid(float(mf), support(scene.particle_radius), float(scene.density0))
+        self.fluid = Fluid(float(mf), scene.support, float(scene.density0))
         self.g = be.asarray(scene.gravity)
         self.pairs = PairCache(be, self.cfg.pair_cache_mb)
         state.zeros("pressure")  # output field, follows reordering
@@ -151,7 +150,7 @@ class Method:
         be, n = self.be, self.state.n
         return be.mean(dens.err), max(be.max(dens.rho) / self.fluid.rho0 - 1.0, 0.0) if n else 0.0
 
-    # -- moving walls (ipsph.rigid; all three no-ops with static walls) -------------------------
+    # -- moving walls (ipsph.boundary.rigid; all three no-ops with static walls) -------------------------
     def move_walls(self, dt: float) -> None:
         """Moving walls to where they are at the end of this step (before the neighbour search that sees them)."""
         if self.walls is not None:
@@ -162,9 +161,11 @@ class Method:
         if self.boundary.moving:
             self.be.wall_rate(x, self.boundary, self.lists, self.fluid.h, dens)
 
-    def wall_reaction(self, dt: float, lam=None, k=()) -> None:
+    def wall_reaction(self, dt: float, lam=None, k=(), after_move: bool = False) -> None:
         """The fluid's force and torque on the moving walls from what this step's pressure parts
-        applied: the PF multipliers `lam` and the DFSPH-type stiffness totals `k` (rigid.WallDriver)."""
+        applied: the PF multipliers `lam` and the DFSPH-type stiffness totals `k` (rigid.WallDriver).
+        `after_move`: the walls moved earlier in this step (PF, IPSPH), with the last reaction as the
+        prediction of this one; the bodies' velocities then take the difference."""
         if self.walls is not None:
             be = self.be
             nl = self.lists  # the wall lists on the host (a device backend's are device arrays)
@@ -175,6 +176,7 @@ class Method:
                 dt,
                 None if lam is None else be.to_host(lam),
                 tuple(be.to_host(a) for a in k),
+                after_move,
             )
 
     @property

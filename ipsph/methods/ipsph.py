@@ -101,5 +101,5 @@ class IPSPH(ProjectiveMethod):
                 rep.solver_maxed += maxed
         be.pf_pressure(st.pressure, st.pd_lambda, self.fluid.rho0, dt)
         be.stiffness_pressure(st.pressure, st.k_div, d.dens.rho, add=True)
-        self.wall_reaction(dt, lam=st.pd_lambda, k=(st.k_div,) if div.enabled else ())
+        self.wall_reaction(dt, lam=st.pd_lambda, k=(st.k_div,) if div.enabled else (), after_move=True)
         return self.end(dt, d.dens)

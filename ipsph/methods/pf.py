@@ -81,20 +81,20 @@ class ProjectiveMethod(Method):
         passes, err, st.x, d.x_spare = pd_solve(
             self.be,
             self.fluid,
-            st.x,
-            d.x_spare,
-            d.s,
-            st.pd_lambda,
-            d.dens,
-            self.boundary,
-            self.lists,
-            dt,
-            self.cfg.pf.stiffness,
-            min_passes,
-            max_passes,
-            tol,
-            warm,
-            scale,
+            x=st.x,
+            x_spare=d.x_spare,
+            s=d.s,
+            lam_sum=st.pd_lambda,
+            dens=d.dens,
+            walls=self.boundary,
+            nl=self.lists,
+            dt=dt,
+            stiffness=self.cfg.pf.stiffness,
+            min_passes=min_passes,
+            max_passes=max_passes,
+            tol=tol,
+            warm=warm,
+            warm_scale=scale,
         )
         return passes, err
 
@@ -145,5 +145,5 @@ class PF(ProjectiveMethod):
             self.velocities(dt, x_old)
             rep.divergence_error = dt * be.mean_positive(d.drho) / self.fluid.rho0
         be.pf_pressure(st.pressure, st.pd_lambda, self.fluid.rho0, dt)  # p = -rho0 Lam / dt^2 (method.md 3)
-        self.wall_reaction(dt, lam=st.pd_lambda)
+        self.wall_reaction(dt, lam=st.pd_lambda, after_move=True)
         return self.end(dt, d.dens)

@@ -12,10 +12,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ..backends import Backend, Densities
+from ..backends.bodies import MIN_NEIGHBOURS_WARM
 from ..model import DFSPHConfig, DivergenceConfig
 from .base import Fluid
-
-MIN_NEIGHBOURS_WARM = 20  # the divergence warm start skips particles with fewer neighbours
 
 
 @dataclass
@@ -51,7 +50,7 @@ def divergence_solve(
     Iterates k_i = alpha_i max(D rho_i/Dt, 0) / dt and the velocity correction until
     dt * mean(D rho/Dt) <= eta_v rho0, between the configured min and max iterations.
     Warm start: half the previous step's total stiffness `k_total`, rescaled by dt_prev/dt and
-    capped, where D rho_i/Dt > 0 (and the particle has >= 20 neighbours). `rate`, when given, is
+    capped, where D rho_i/Dt > 0 (and the particle has >= MIN_NEIGHBOURS_WARM neighbours). `rate`, when given, is
     a D rho_i/Dt already at hand for that test (IPSPH: the viscosity pass's by-product), which
     saves one residual pass. `k_total` receives everything applied (the next warm start).
     `dens`: the density pass at x. Returns (iterations, error, hit_cap).
@@ -61,7 +60,7 @@ def divergence_solve(
     if dt_prev is not None:
         if rate is None:
             be.divergence_residual(x, v, fl.mf, dens, nl, pairs, fl.h, dt, drho, k)
-            rate = drho  # already 0 below 20 neighbours
+            rate = drho  # already 0 below MIN_NEIGHBOURS_WARM neighbours
         be.warm_stiffness(k_total, dt_prev / dt, rate, dens.n_nbrs, MIN_NEIGHBOURS_WARM, sc.warm)
         be.apply_stiffness(x, fl.mf, dens, nl, pairs, fl.h, sc.warm, dt, v, k_total)
     else:
@@ -116,6 +115,7 @@ def density_solve(
 def pd_solve(
     be: Backend,
     fl: Fluid,
+    *,
     x,
     x_spare,
     s,

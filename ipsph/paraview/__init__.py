@@ -92,6 +92,17 @@ def _probe_line(bounds: np.ndarray, fluid_bounds: np.ndarray, gravity, r: float)
     return [round(float(v), 6) for v in p1], [round(float(v), 6) for v in p2], n
 
 
+# Every part of run.pvd (io.PARTS) and the key of `view_settings()["files"]` the script opens it by:
+# the script shows every part a run wrote.
+PART_FILES = {
+    "fluid": "fluid",
+    "surface": "surface",
+    "boundary": "wall_particles",
+    "boundary_surface": "walls",
+    "bodies": "bodies",
+}
+
+
 def view_settings(out_dir) -> dict:
     """The values paraview_view.py needs, from the run in `out_dir` (run.json, frame 0, stats)."""
     from .. import render
@@ -127,6 +138,11 @@ def view_settings(out_dir) -> dict:
         view_up=config.view_up,
     )
     fluid_series = out_io.part("fluid").series
+
+    def series_of(name: str) -> str | None:  # a per-frame part's own series, when the run wrote it
+        f = out_io.part(name).series
+        return f if (out / f).is_file() else None
+
     title = " - ".join(
         str(x)
         for x in (
@@ -142,7 +158,10 @@ def view_settings(out_dir) -> dict:
             "fluid": fluid_series,
             "walls": out_io.BOUNDARY_SURFACE if (out / out_io.BOUNDARY_SURFACE).is_file() else None,
             "wall_particles": out_io.BOUNDARY_VTU if (out / out_io.BOUNDARY_VTU).is_file() else None,
+            "surface": series_of("surface"),
+            "bodies": series_of("bodies"),
         },
+        "surface_visible": config.mode == "surface",
         "particle_radius": r,
         "density0": float(sim.get("density0", 1000.0)),
         "gravity": [float(v) for v in gravity],

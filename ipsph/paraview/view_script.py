@@ -12,6 +12,10 @@ What it builds, with this run's values filled in (SETTINGS below):
              (velocity Magnitude) over the run's colour range, with the renders' colour map;
   - walls    boundary_surface.vtp as a translucent surface (front faces culled: a cutaway);
   - wall particles (boundary.vtu), hidden;
+  - bodies   bodies.pvd, the moving walls and rigid bodies where they are at each frame, as
+             surfaces in the walls' colour (when the run has any);
+  - surface  surface.pvd, the fluid's surface mesh (a run with --surface), coloured by speed;
+             shown when the run rendered surfaces (render.mode = "surface"), else hidden;
   - the camera, background, time annotation and title of `ipsph render`;
   - SPH line, hidden until you show it: an SPH Line Interpolator on the fluid with the settings
     it needs (cubic kernel, Spatial Step = 2r, Density Array `density`, Mass Array `mass`), then
@@ -158,6 +162,25 @@ def build(s=None, where=None, text_scale=1.0):
         )
         pv.Hide(wp, view)
         out["wall particles"] = wp
+
+    if files.get("bodies"):  # moving walls and rigid bodies: a surface per frame
+        bodies = pv.PVDReader(registrationName="bodies", FileName=os.path.join(where, files["bodies"]))
+        bd = pv.Show(bodies, view)
+        bd.SetRepresentationType("Surface")
+        bd.ColorArrayName = ["POINTS", ""]
+        bd.AmbientColor = bd.DiffuseColor = s["wall_colour"]
+        bd.Specular = 0.0
+        out["bodies"] = bodies
+    if files.get("surface"):  # the fluid's surface mesh per frame (--surface)
+        surface = pv.PVDReader(registrationName="surface", FileName=os.path.join(where, files["surface"]))
+        sd = pv.Show(surface, view)
+        sd.SetRepresentationType("Surface")
+        pv.ColorBy(sd, ("POINTS", "velocity", "Magnitude"))  # the fluid's colour map (lut above)
+        if not s.get("surface_visible"):
+            pv.Hide(surface, view)
+        else:
+            pv.Hide(fluid, view)
+        out["surface"] = surface
 
     ann = pv.AnnotateTimeFilter(registrationName="time", Input=fluid)
     ann.Format = "t = {time:.3f} s"

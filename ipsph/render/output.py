@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-import re
 from pathlib import Path
 
 import numpy as np
@@ -11,20 +10,9 @@ import numpy as np
 from ..errors import ConfigError, OutputError
 from ..model import RenderConfig
 from ..params import RENDER_MODES
+from ..io.pvd import frame_index
+from ..io.vtu import read_surface
 from .frame import FrameRenderer
-
-
-def read_surface(path):
-    """The boundary surface (.vtp) the run wrote, or None; plain VTK (no pyvista import, ~0.35 s)."""
-    path = Path(path)
-    if not path.is_file():
-        return None
-    from vtkmodules.vtkIOXML import vtkXMLPolyDataReader
-
-    reader = vtkXMLPolyDataReader()
-    reader.SetFileName(str(path))
-    reader.Update()
-    return reader.GetOutput()
 
 
 def _render_config(run: dict, overrides: dict | None) -> RenderConfig:
@@ -38,11 +26,6 @@ def _render_config(run: dict, overrides: dict | None) -> RenderConfig:
     if unknown:
         raise ConfigError(f"unknown render setting(s) {', '.join(unknown)}; allowed: {', '.join(sorted(fields))}")
     return dataclasses.replace(RenderConfig(), **{**stored, **overrides})
-
-
-def _frame_index(file: str, position: int) -> int:
-    m = re.search(r"(\d+)\.vtu$", file)
-    return int(m.group(1)) if m else position
 
 
 def _speed_range_for(out: Path, run: dict, frames: list[tuple[float, str]], given) -> tuple[float, float]:
@@ -153,7 +136,7 @@ def render_output(
     pngs: list[Path] = []
     with FrameRenderer(config, bounds, radius, rng, surface, title=title) as r:
         for k, (i, (t, f)) in enumerate(todo):
-            png = out / RENDERS_DIR / f"frame_{_frame_index(f, i):06d}.png"
+            png = out / RENDERS_DIR / f"frame_{frame_index(f, i):06d}.png"
             moving = series.frame_parts[i].get("bodies")  # moving walls and bodies, where they are
             if moving is not None and (out / moving).is_file():
                 r.set_moving(read_surface(out / moving))

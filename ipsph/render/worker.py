@@ -58,7 +58,7 @@ def _worker(jobs, results, parent_pid=None):
     vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_OFF)
     vtkObject.GlobalWarningDisplayOff()
     from .frame import FrameRenderer
-    from .output import read_surface
+    from ..io.vtu import read_surface
     from .png import save_png
     from .splat import warm_up
 

@@ -3,7 +3,8 @@
 Every parameter is declared once, in `ipsph.params.PARAMS` (key path, type, default, unit,
 allowed values, one-line doc); this package is generated from it:
 
-    validate.py    TOML / dict -> Scene: types, ranges, did-you-mean, renamed keys, entities
+    validate.py    TOML / dict -> Scene: the tables, the entities, the rules between sections
+    values.py      one value against its Param: key trees, did-you-mean, renamed keys, types, ranges
     overrides.py   `--set key.path=value` on the dict, before validation
     serialise.py   Scene -> dict (run.json, checkpoint fingerprints)
     reference.py   docs/scene-reference.md (`python -m ipsph.scene`) and `ipsph run --help`'s key list

@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
-from typing import Any
 
 from ..errors import ConfigError, read_text
+from .bodies import BodyReader
+from .reader import Reader
 
-SPH_BODY_DENSITY = 1000.0  # SPlisHSPlasH's RigidBodies density when a dynamic body leaves it out
 
 __all__ = ["scene_dict", "DEFAULT_END_TIME"]
 
@@ -39,39 +38,17 @@ _VISCOSITY_METHODS = {
     7: "Weiler et al. 2018",
 }
 
-# Unsupported keys worth a reason in the warning (anything else is listed bare).
-_NOTES = {
-    "boundaryHandlingMethod": "ipsph always uses Akinci et al. 2012 boundary particles",
-    "numberOfStepsPerRenderUpdate": "GUI only",
-    "particleAttributes": "ipsph writes output.fields",
-    "kernel": "ipsph uses the cubic spline",
-    "gradKernel": "ipsph uses the cubic spline",
-    "mapResolution": "volume maps are not used",
-    "mapThickness": "volume maps are not used",
-    "mapFile": "volume maps are not used",
-    "surfaceTension": "no surface tension model",
-    "surfaceTensionMethod": "no surface tension model",
-    "vorticity": "no vorticity model",
-    "vorticityMethod": "no vorticity model",
-    "drag": "no drag model",
-    "dragMethod": "no drag model",
-    "exponent": "WCSPH only",
-    "velocityUpdateMethod": "PBF only",
-    "enablePartioExport": "ipsph writes VTU/PVD",
-    "enableVTKExport": "ipsph writes VTU/PVD",
-    "color": "visual only",
-    "colorMapType": "visual only",
-    "colorField": "visual only",
-    "renderMinValue": "visual only",
-    "renderMaxValue": "visual only",
-    "renderWalls": "visual only",
-    "pause": "GUI only",
-    "pauseAt": "GUI only",
-    "samplingMode": "ipsph samples walls itself",
-    "particleFile": "ipsph samples walls itself",
-    "resolutionSDF": "ipsph samples meshes itself",
-    "enableZSort": "ipsph sorts by cell",
-}
+
+# SPlisHSPlasH 2.0.0's solver settings, flat in Configuration (later versions: per-method blocks)
+_FLAT_SOLVER_KEYS = (
+    "minIterations",
+    "maxIterations",
+    "maxError",
+    "maxIterationsV",
+    "maxErrorV",
+    "enableDivergenceSolver",
+    "stiffness",
+)
 
 
 def scene_dict(path: Path, where: str | None = None) -> tuple[dict, tuple[str, ...]]:
@@ -91,59 +68,7 @@ def scene_dict(path: Path, where: str | None = None) -> tuple[dict, tuple[str, .
     return _Importer(where, raw).run()
 
 
-class _Importer:
-    def __init__(self, where: str, raw: dict):
-        self.where = where
-        self.raw = raw
-        self.ignored: dict[str, list[str]] = {}  # "RigidBodies[*].color" -> ["0", "1"]
-        self.notes: list[str] = []
-
-    # -- helpers ---------------------------------------------------------------------------------
-    def fail(self, key: str, msg: str) -> ConfigError:
-        return ConfigError(f"{self.where}: {key}: {msg}")
-
-    def ignore(self, section: str, key: str, value: Any = None, index: int | None = None):
-        label = f"{section}[*].{key}" if index is not None else (f"{section}.{key}" if section else key)
-        note = _NOTES.get(key)
-        if key == "boundaryHandlingMethod" and value is not None:
-            label = f"{label}={value}"
-        if note:
-            label = f"{label} ({note})"
-        self.ignored.setdefault(label, [])
-        if index is not None:
-            self.ignored[label].append(str(index))
-
-    def num(self, value: Any, key: str) -> float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise self.fail(key, f"expected a number, got {value!r}")
-        return float(value)
-
-    def int_(self, value: Any, key: str) -> int:
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or float(value) != int(value):
-            raise self.fail(key, f"expected an integer, got {value!r}")
-        return int(value)
-
-    def bool_(self, value: Any, key: str) -> bool:
-        if isinstance(value, bool):
-            return value
-        if isinstance(value, int):  # SPlisHSPlasH reads integers as booleans (v != 0)
-            return value != 0
-        raise self.fail(key, f"expected true or false, got {value!r}")
-
-    def vec3(self, value: Any, key: str) -> list[float]:
-        if isinstance(value, (int, float)) and not isinstance(value, bool):
-            return [self.num(value, key)] * 3  # SPlisHSPlasH accepts a scalar scale
-        if not isinstance(value, list) or len(value) != 3:
-            raise self.fail(key, f"expected 3 numbers [x, y, z], got {value!r}")
-        return [self.num(c, f"{key}[{i}]") for i, c in enumerate(value)]
-
-    def list_of_objects(self, key: str) -> list[dict]:
-        items = self.raw.get(key, [])
-        if not isinstance(items, list) or not all(isinstance(i, dict) for i in items):
-            raise self.fail(key, "expected an array of objects")
-        return items
-
-    # -- conversion ------------------------------------------------------------------------------
+class _Importer(Reader, BodyReader):
     def run(self) -> tuple[dict, tuple[str, ...]]:
         out: dict = {"simulation": {}, "time_step": {}, "solver": {}, "output": {}}
         for key in self.raw:
@@ -213,13 +138,7 @@ class _Importer:
             "density0",
             "viscosity",
             "viscosityMethod",
-            "minIterations",
-            "maxIterations",
-            "maxError",
-            "maxIterationsV",
-            "maxErrorV",
-            "enableDivergenceSolver",
-            "stiffness",
+            *_FLAT_SOLVER_KEYS,
         }
         for key, value in c.items():
             if key not in handled:
@@ -285,19 +204,7 @@ class _Importer:
         for key, block in (("DFSPH", dfsph), ("Projective Fluids", pf)):
             if not isinstance(block, dict):
                 raise self.fail(f"Configuration.{key}", "expected an object")
-        flat = {
-            k: c[k]
-            for k in (
-                "minIterations",
-                "maxIterations",
-                "maxError",
-                "maxIterationsV",
-                "maxErrorV",
-                "enableDivergenceSolver",
-                "stiffness",
-            )
-            if k in c
-        }
+        flat = {k: c[k] for k in _FLAT_SOLVER_KEYS if k in c}
         if flat:
             if "stiffness" in flat:  # 2.0.0: WCSPH and PF share the key
                 pf = {**pf, "stiffness": flat.pop("stiffness")}
@@ -415,132 +322,6 @@ class _Importer:
         elif vmethod is None and visc is not None:
             self.notes.append(f"{label}: no viscosityMethod; viscosity {visc:g} is used as the XSPH coefficient zeta")
         return index, density, visc, vmethod
-
-    def dense_mode(self, item: dict, label: str) -> None:
-        mode = self.int_(item.get("denseMode", 0), f"{label}.denseMode")
-        if mode != 0:
-            raise self.fail(
-                f"{label}.denseMode", f"{mode} is not supported: ipsph samples the regular lattice only (denseMode 0)"
-            )
-
-    def fluid_block(self, i: int, b: dict) -> dict:
-        label = f"FluidBlocks[{i}]"
-        for key in ("start", "end"):
-            if key not in b:
-                raise self.fail(label, f"missing {key!r}")
-        start = self.vec3(b["start"], f"{label}.start")
-        end = self.vec3(b["end"], f"{label}.end")
-        t = self.vec3(b.get("translation", [0, 0, 0]), f"{label}.translation")
-        s = self.vec3(b.get("scale", [1, 1, 1]), f"{label}.scale")
-        self.dense_mode(b, label)
-        self.angular_velocity(b, label)
-        for key, value in b.items():
-            if key not in (
-                "start",
-                "end",
-                "translation",
-                "scale",
-                "denseMode",
-                "initialVelocity",
-                "initialAngularVelocity",
-                "id",
-            ):
-                self.ignore("FluidBlocks", key, value, index=i)
-        # SPlisHSPlasH SceneLoader: corner' = scale * corner + translation, per component
-        lo = [si * c + ti for si, c, ti in zip(s, start, t)]
-        hi = [si * c + ti for si, c, ti in zip(s, end, t)]
-        entry = {"name": f"block{i}", "box": {"min": lo, "max": hi}}
-        if "initialVelocity" in b:
-            entry["velocity"] = self.vec3(b["initialVelocity"], f"{label}.initialVelocity")
-        return entry
-
-    def angular_velocity(self, item: dict, label: str) -> None:
-        if "initialAngularVelocity" in item and any(
-            self.vec3(item["initialAngularVelocity"], f"{label}.initialAngularVelocity")
-        ):
-            raise self.fail(f"{label}.initialAngularVelocity", "is not supported")
-
-    def transform(self, item: dict, label: str, entry: dict) -> None:
-        if "translation" in item:
-            entry["translate"] = self.vec3(item["translation"], f"{label}.translation")
-        if "scale" in item:
-            entry["scale"] = self.vec3(item["scale"], f"{label}.scale")
-        angle = self.num(item.get("rotationAngle", 0.0), f"{label}.rotationAngle")
-        if angle != 0.0:
-            axis = self.vec3(item.get("rotationAxis", [1, 0, 0]), f"{label}.rotationAxis")
-            entry["rotate_axis"] = axis
-            entry["rotate_deg"] = math.degrees(angle)
-
-    def fluid_model(self, i: int, m: dict) -> dict:
-        label = f"FluidModels[{i}]"
-        f = m.get("particleFile")
-        if not isinstance(f, str) or not f:
-            raise self.fail(f"{label}.particleFile", "missing: the mesh of the fluid body")
-        if Path(f).suffix.lower() in (".bgeo", ".bhclassic", ".geo", ".ptc", ".pdb"):
-            raise self.fail(
-                f"{label}.particleFile",
-                f"{f!r} is a partio particle file; ipsph samples fluid from closed meshes only (.obj, .ply, .stl)",
-            )
-        self.dense_mode(m, label)
-        self.angular_velocity(m, label)
-        if "invert" in m and self.bool_(m["invert"], f"{label}.invert"):
-            raise self.fail(f"{label}.invert", "inverted fluid models are not supported")
-        entry: dict = {"name": f"model{i}", "mesh": f}
-        self.transform(m, label, entry)
-        if "initialVelocity" in m:
-            entry["velocity"] = self.vec3(m["initialVelocity"], f"{label}.initialVelocity")
-        for key, value in m.items():
-            if key not in (
-                "particleFile",
-                "translation",
-                "scale",
-                "rotationAxis",
-                "rotationAngle",
-                "initialVelocity",
-                "initialAngularVelocity",
-                "denseMode",
-                "invert",
-                "id",
-            ):
-                self.ignore("FluidModels", key, value, index=i)
-        return entry
-
-    def rigid_body(self, i: int, b: dict) -> dict:
-        label = f"RigidBodies[{i}]"
-        f = b.get("geometryFile")
-        if not isinstance(f, str) or not f:
-            raise self.fail(f"{label}.geometryFile", "missing: ipsph samples walls from their mesh")
-        dynamic = "isDynamic" in b and self.bool_(b["isDynamic"], f"{label}.isDynamic")
-        wall = self.bool_(b.get("isWall", False), f"{label}.isWall")
-        invert = self.bool_(b.get("mapInvert", False), f"{label}.mapInvert")
-        entry: dict = {"name": f"body{i}", "mesh": f, "role": "container" if wall or invert else "obstacle"}
-        if dynamic:  # a two-way coupled rigid body (ipsph.rigid) of SPlisHSPlasH's density (default 1000)
-            if wall or invert:
-                raise self.fail(
-                    f"{label}.isDynamic",
-                    "a dynamic body cannot be a wall (isWall / mapInvert): it is an obstacle the fluid flows around",
-                )
-            density = b.get("density", SPH_BODY_DENSITY)
-            if isinstance(density, bool) or not isinstance(density, (int, float)) or not density > 0:
-                raise self.fail(f"{label}.density", f"{density!r}: a dynamic body needs a density > 0 (kg/m^3)")
-            entry["density"] = float(density)
-            if "density" not in b:
-                self.notes.append(f"{label}: no density given, SPlisHSPlasH's default {SPH_BODY_DENSITY:g} kg/m^3 used")
-        self.transform(b, label, entry)
-        for key, value in b.items():
-            if key not in (
-                "geometryFile",
-                "translation",
-                "scale",
-                "rotationAxis",
-                "rotationAngle",
-                "isDynamic",
-                "isWall",
-                "mapInvert",
-                "density",
-            ):
-                self.ignore("RigidBodies", key, value, index=i)
-        return entry
 
     def warning(self) -> tuple[str, ...]:
         parts = []

@@ -30,7 +30,7 @@ validated as a TOML scene, so override keys are ipsph's (`--set simulation.metho
 | `RigidBodies[]`: `geometryFile`, `translation`, `scale`, `rotationAxis`, `rotationAngle` (radians), `isWall`, `mapInvert` | `[[boundary]] mesh`, ..., `role` = container if `isWall` or `mapInvert`, else obstacle |
 | `Emitters[]`: `type` 0 / 1, `width`, `height` (particles), `translation`, `rotationAxis`, `rotationAngle` (radians), `velocity`, `emitStartTime`, `emitEndTime` | `[[emitter]]` `shape` box / circle, `width` = width * 2r, `height` = height * 2r (circle: `radius` = width * r), `position`, `direction` and `height_axis` = the rotation's first and second columns, `velocity`, `start_time`, `end_time` (REAL_MAX: the run's end) |
 | `emitterReuseParticles` with `emitterBoxMin`, `emitterBoxMax` (a material, or the 2.0.0 `Configuration`) | `[domain] min`, `max`: fluid leaving the box is removed (ipsph emits fresh particles with new ids instead of reusing them); `maxEmitterParticles` is not needed (the capacity is planned from the emitters) |
-| `RigidBodies[]`: `isDynamic` = true, `density` (default 1000) | a dynamic rigid body: `[[boundary]] density`, role obstacle (ipsph.rigid; the mesh must be closed) |
+| `RigidBodies[]`: `isDynamic` = true, `density` (default 1000) | a dynamic rigid body: `[[boundary]] density`, role obstacle (ipsph.boundary.rigid; the mesh must be closed) |
 
 Mesh paths are relative to the scene file, as in SPlisHSPlasH (`../models/UnitBox.obj`).
 
@@ -39,7 +39,8 @@ Refused (ConfigError): `simulationMethod` other than 4 or 5, `denseMode` other t
 `invert`ed fluid models, several materials with different density or viscosity.
 
 Warned about, in one message (`Scene.warnings`): every other key, e.g.
-`boundaryHandlingMethod` (ipsph always uses Akinci et al. 2012 boundary particles),
+`boundaryHandlingMethod` (every value maps to `simulation.boundary_model = "akinci-volume"`: Akinci
+particles placed so that the fluid's volume meets the surface, what its volume and density maps aim at),
 `numberOfStepsPerRenderUpdate`, `mapResolution`, `color`, `surfaceTension`, and a
 `viscosityMethod` other than XSPH or Standard: its `viscosity` value is then used as the XSPH
 coefficient (method 0, None, gives zeta = 0). The Standard model's wall friction

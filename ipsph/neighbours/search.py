@@ -1,4 +1,4 @@
-"""Neighbour search: uniform cell grid, counting sort by cell, fixed-stride neighbour lists.
+"""The neighbour search's driver: uniform cell grid, counting sort by cell, fixed-stride neighbour lists.
 
 Particles are binned into cells of H/4 x H x H (H the kernel support), sorted by cell with a
 stable counting sort (so the state arrays can be reordered for memory locality), and every
@@ -20,11 +20,11 @@ more than K neighbours the build reports it and the caller grows K and rebuilds.
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
 
-from .backends.cpu_neighbours import (
+from ..errors import NumericalFailure
+from .cpu import (
     append_lower,
     bounds,
     cell_ids,
@@ -35,7 +35,7 @@ from .backends.cpu_neighbours import (
     near_cells,
     _wall_candidate_pass,
 )
-from .errors import NumericalFailure
+from .rows import grown_stride
 
 
 # Cell size per axis, in units of the support H. Short cells along x (the axis along which a
@@ -132,9 +132,10 @@ class NeighbourSearch:
     """Owns the grid, the cell sort, the walls' per-cell candidates and the lists; `update` sorts
     the fluid and rebuilds the lists.
 
-    The boundary is static: it is sorted into the grid once (and again only if the grid has to
-    grow because fluid left it), in place through `boundary.reorder`. `update` returns the
-    permutation to apply to the fluid, so the caller reorders every per-particle array with it.
+    Static walls are sorted into the grid once (and again only if the grid has to grow because
+    fluid left it), in place through `boundary.reorder`; with moving walls (`boundary.moving`)
+    they are sorted again at every `update` (`_resort_walls`). `update` returns the permutation to
+    apply to the fluid, so the caller reorders every per-particle array with it.
     """
 
     # Cells beyond this many per particle mean the fluid blew apart (a runaway particle).
@@ -190,7 +191,7 @@ class NeighbourSearch:
     def _resort_walls(self, x_fluid) -> None:
         """Moving walls: sort the walls into the grid again at their new positions (refitting the
         grid if they left it) and rebuild the per-cell candidates. Every step, so its cost is the
-        price of a moving wall (`ipsph bench --moving`)."""
+        price of a moving wall (`python -m benchmarks moving-walls`)."""
         xb = self.boundary.x
         lo, hi = bounds(xb) if len(xb) else (np.zeros(3), np.zeros(3))
         if not self.grid.contains(lo, hi):
@@ -266,36 +267,41 @@ class NeighbourSearch:
         return perm
 
     def _build(self, xs, fluid_start):
-        g = self.grid
-        n = len(xs)
+        """Both lists at the sorted positions `xs`, growing the strides until every row fits."""
+        n = xs.shape[0]
         while True:
-            if (
-                self.lists is None
-                or self.lists.fluid.shape != (n, self.k_fluid)
-                or self.lists.boundary.shape != (n, self.k_boundary)
-            ):
-                self.lists = NeighbourLists(n, self.k_fluid, self.k_boundary)
-            lists = self.lists
-            # fluid pairs are symmetric: gather j > i in parallel, then append each pair to the
-            # lower particle's row serially (cheaper than a full gather: docs/performance.md)
-            gather_neighbours(
-                xs, xs, fluid_start, g.origin, g.inv_cell, g.dims, self.h, True, True, lists.fluid, lists.fluid_count
-            )
-            most_f = append_lower(lists.fluid, lists.fluid_count)
-            most_b = gather_walls(
-                xs,
-                self.boundary.x,
-                self.wall_start,
-                self.wall_cand,
-                g.origin,
-                g.inv_cell,
-                g.dims,
-                self.h,
-                lists.boundary,
-                lists.boundary_count,
-            )
+            nl = self.lists
+            if nl is None or nl.fluid.shape != (n, self.k_fluid) or nl.boundary.shape != (n, self.k_boundary):
+                self.lists = self._new_lists(n)
+            most_f, most_b = self._gather(xs, fluid_start, self.lists)
             if most_f <= self.k_fluid and most_b <= self.k_boundary:
                 return
-            # grow the stride (rounded up to a multiple of 16) and rebuild; rare
-            self.k_fluid = max(self.k_fluid, int(math.ceil(most_f * 1.25 / 16) * 16))
-            self.k_boundary = max(self.k_boundary, int(math.ceil(most_b * 1.25 / 16) * 16))
+            # grow the stride and rebuild; rare
+            self.k_fluid = grown_stride(self.k_fluid, most_f)
+            self.k_boundary = grown_stride(self.k_boundary, most_b)
+
+    def _new_lists(self, n: int) -> NeighbourLists:
+        return NeighbourLists(n, self.k_fluid, self.k_boundary)
+
+    def _gather(self, xs, fluid_start, lists) -> tuple[int, int]:
+        """Fill both lists; returns the longest fluid and wall rows (the true counts)."""
+        g = self.grid
+        # fluid pairs are symmetric: gather j > i in parallel, then append each pair to the
+        # lower particle's row serially (cheaper than a full gather: docs/performance.md)
+        gather_neighbours(
+            xs, xs, fluid_start, g.origin, g.inv_cell, g.dims, self.h, True, True, lists.fluid, lists.fluid_count
+        )
+        most_f = append_lower(lists.fluid, lists.fluid_count)
+        most_b = gather_walls(
+            xs,
+            self.boundary.x,
+            self.wall_start,
+            self.wall_cand,
+            g.origin,
+            g.inv_cell,
+            g.dims,
+            self.h,
+            lists.boundary,
+            lists.boundary_count,
+        )
+        return most_f, most_b

@@ -1,10 +1,11 @@
-"""`python -m ipsph.ensemble._child run ...`: `ipsph run`, tied to the life of the process that started it.
+"""A member's `ipsph run`, tied to the life of the process that started it.
 
-A member runs as this child of its Dask task. Before anything else it asks Linux to send it
+A member runs as `python -m ipsph run ...`, a child of its Dask task, with IPSPH_SWEEP_PARENT set
+to the task's pid; `ipsph.__main__` calls `die_with_parent` first. That asks Linux to send it
 SIGTERM when its parent dies (prctl PR_SET_PDEATHSIG): a worker that is killed mid-member takes
 its member down the way Ctrl-C does (the current step finishes, a final frame and a checkpoint
 are written), so the rerun on another worker continues from that checkpoint, and no orphaned
-simulation goes on writing into the folder. Then it is exactly `ipsph run` (`ipsph.cli.main`).
+simulation goes on writing into the folder. Then it is exactly `ipsph run`.
 """
 
 from __future__ import annotations
@@ -12,6 +13,8 @@ from __future__ import annotations
 import os
 import signal
 import sys
+
+PARENT_ENV = "IPSPH_SWEEP_PARENT"  # set by member.py for its child
 
 
 def _die_with_parent(parent: int) -> None:
@@ -28,10 +31,8 @@ def _die_with_parent(parent: int) -> None:
         os.kill(os.getpid(), signal.SIGTERM)
 
 
-if __name__ == "__main__":
-    want = os.environ.get("IPSPH_SWEEP_PARENT")
+def die_with_parent() -> None:
+    """When IPSPH_SWEEP_PARENT names this process's parent: die (SIGTERM) when that parent dies."""
+    want = os.environ.get(PARENT_ENV)
     if want and want.isdigit():
         _die_with_parent(int(want))
-    from ipsph.cli import main
-
-    sys.exit(main(sys.argv[1:]))

@@ -6,7 +6,7 @@ effective mass rho0 * Psi_b, where the volume
     Psi_b = 1 / (W(0) + sum_{b'} W(x_b - x_b'))          [AIA*12, eq. 4]
 
 is computed once. No method branches on the boundary: a scene without walls simply has zero
-boundary particles. Walls may move rigidly (kinematic walls, rigid bodies: ipsph.rigid): each
+boundary particles. Walls may move rigidly (kinematic walls, rigid bodies: ipsph.boundary.rigid): each
 moving wall is its own `group`, whose volumes are summed over its own particles only, so they
 are invariant under its motion (a wall sliding past another does not change either's volumes);
 its particles carry velocities `v` (zero for static walls), which the density rate sees.
@@ -21,8 +21,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from .kernels import w
-from .neighbours import Grid, cell_ids, counting_sort, gather_neighbours
+from ..kernels import w
+from ..neighbours import Grid, cell_ids, counting_sort, gather_neighbours
 
 
 @njit(parallel=True, cache=True)
@@ -213,6 +213,7 @@ class Boundary:
         rest_lattice: np.ndarray | None = None,
         spacing: float | None = None,
         groups: np.ndarray | None = None,
+        depth: np.ndarray | None = None,
     ):
         self.x = np.array(x, dtype=np.float64).reshape(-1, 3)  # a copy: moving walls write into it
         self.h = float(support)
@@ -220,6 +221,8 @@ class Boundary:
         self.v = np.zeros_like(self.x)
         self.groups = None if groups is None else np.ascontiguousarray(groups, dtype=np.int32)
         self.x0 = None if groups is None else self.x.copy()  # placement at t = 0 (moving walls)
+        # with moving walls: each particle's distance behind its wall's surface (contacts act on surfaces)
+        self.depth = None if groups is None else np.zeros(len(self.x)) if depth is None else np.array(depth, float)
         self.moving = self.groups is not None and bool(np.any(self.groups > 0))
         self.psi = self._volumes()
         self.fit_report: dict = {}
@@ -271,7 +274,7 @@ class Boundary:
         summed in the original order, so a continuation takes them as they are."""
         d = {"x": self.x.copy(), "psi": self.psi.copy(), "m": self.m.copy()}
         if self.moving:
-            d.update(v=self.v.copy(), groups=self.groups.copy(), x0=self.x0.copy())
+            d.update(v=self.v.copy(), groups=self.groups.copy(), x0=self.x0.copy(), depth=self.depth.copy())
         return d
 
     def load_state_dict(self, d: dict[str, np.ndarray]) -> None:
@@ -284,6 +287,7 @@ class Boundary:
             self.v = np.ascontiguousarray(d["v"], dtype=np.float64)
             self.groups = np.ascontiguousarray(d["groups"], dtype=np.int32)
             self.x0 = np.ascontiguousarray(d["x0"], dtype=np.float64)
+            self.depth = np.ascontiguousarray(d["depth"], dtype=np.float64)
         else:
             self.v = np.zeros_like(self.x)
 
@@ -296,3 +300,4 @@ class Boundary:
         if self.groups is not None:
             self.groups = np.ascontiguousarray(self.groups[order])
             self.x0 = np.ascontiguousarray(self.x0[order])
+            self.depth = np.ascontiguousarray(self.depth[order])

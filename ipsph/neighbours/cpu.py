@@ -1,20 +1,14 @@
 """The CPU kernels of the neighbour search (numba): cell binning, the counting sort by cell
-(a prefix sum over cells: the layout a device search shares), the row-walk gather of fluid pairs,
-the walls' per-cell candidates and their gather. `ipsph.neighbours.NeighbourSearch` drives them.
+(a prefix sum over cells: the layout a device search shares), the launchers of the row walk and
+the wall gather (`rows`: the per-particle bodies, shared with `neighbours.cuda`), the walls'
+per-cell candidates. `neighbours.search.NeighbourSearch` drives them.
 """
 
 import numpy as np
 from numba import njit, prange
 
-
-@njit(inline="always")
-def _cell_of(p0, p1, p2, origin, inv_cell, dims):
-    """The cell (cx, cy, cz) of a point, clamped to the grid: the one binning rule that the sort,
-    the row walk and the walls' per-cell candidates all share."""
-    cx = min(max(int((p0 - origin[0]) * inv_cell[0]), 0), dims[0] - 1)
-    cy = min(max(int((p1 - origin[1]) * inv_cell[1]), 0), dims[1] - 1)
-    cz = min(max(int((p2 - origin[2]) * inv_cell[2]), 0), dims[2] - 1)
-    return cx, cy, cz
+from .rows import cell_of as _cell_of
+from .rows import fluid_row, wall_row
 
 
 @njit(cache=True)
@@ -84,58 +78,13 @@ def _largest(cnt):
 
 @njit(parallel=True, cache=True)
 def gather_neighbours(xq, xs, cell_start, origin, inv_cell, dims, radius, same_set, upper, idx, cnt):
-    """For each query point i, the indices j of points xs with |xq_i - xs_j| < radius.
-
-    `xs` must be sorted by cell with `cell_start` its CSR offsets. Rows of cells (fixed y, z)
-    that lie entirely outside the sphere are skipped and each remaining row is trimmed to the
-    x-extent of the sphere's chord, so fewer candidates fall outside the sphere.
-    With `same_set`, i itself is skipped (xq is xs). With `upper` too, only j > i are gathered
-    (the rows after i's row, and i's own row after i: half the rows and candidates); see
-    `append_lower`. (Static walls use `gather_walls` instead.) Writes the first K = idx.shape[1] indices and
-    the true count; returns the largest count so the caller can detect an overflow.
+    """For each query point i, the indices j of points xs with |xq_i - xs_j| < radius
+    (`rows.fluid_row`; with `upper`, j > i only: see `append_lower`). Static walls use
+    `gather_walls` instead. Writes the first K = idx.shape[1] indices and the true count; returns
+    the largest count so the caller can detect an overflow.
     """
-    nx, ny, nz = dims[0], dims[1], dims[2]
-    k_max = idx.shape[1]
-    r2 = radius * radius
-    cell_y, cell_z = 1.0 / inv_cell[1], 1.0 / inv_cell[2]
-    reach_y = int(np.ceil(radius * inv_cell[1]))
-    reach_z = int(np.ceil(radius * inv_cell[2]))
     for i in prange(xq.shape[0]):
-        xi0 = xq[i, 0]
-        xi1 = xq[i, 1]
-        xi2 = xq[i, 2]
-        _, cy, cz = _cell_of(xi0, xi1, xi2, origin, inv_cell, dims)
-        n = 0
-        row_i = idx[i]
-        for z in range(cz if upper else max(cz - reach_z, 0), min(cz + reach_z, nz - 1) + 1):
-            z_lo = origin[2] + z * cell_z
-            dz = max(z_lo - xi2, xi2 - (z_lo + cell_z), 0.0)
-            for y in range(cy if upper and z == cz else max(cy - reach_y, 0), min(cy + reach_y, ny - 1) + 1):
-                y_lo = origin[1] + y * cell_y
-                dy = max(y_lo - xi1, xi1 - (y_lo + cell_y), 0.0)
-                rest = r2 - dy * dy - dz * dz
-                if rest <= 0.0:
-                    continue
-                half = np.sqrt(rest)
-                x_lo = min(max(int((xi0 - half - origin[0]) * inv_cell[0]), 0), nx - 1)
-                x_hi = min(max(int((xi0 + half - origin[0]) * inv_cell[0]), 0), nx - 1)
-                row = (z * ny + y) * nx
-                first = cell_start[row + x_lo]
-                if upper and z == cz and y == cy:
-                    first = max(first, i + 1)
-                for j in range(first, cell_start[row + x_hi + 1]):
-                    d0 = xi0 - xs[j, 0]
-                    d1 = xi1 - xs[j, 1]
-                    d2 = xi2 - xs[j, 2]
-                    # branch-free append: always store, advance only for a hit (candidates
-                    # fail about 3 times in 4, so a branch here mispredicts a lot; `and` would
-                    # be a branch too, hence the bitwise & on the comparisons)
-                    row_i[min(n, k_max - 1)] = j
-                    hit = d0 * d0 + d1 * d1 + d2 * d2 < r2
-                    if same_set:
-                        hit = hit & (j != i)
-                    n += np.int64(hit)
-        cnt[i] = n
+        cnt[i] = fluid_row(i, xq, xs, cell_start, origin, inv_cell, dims, radius, same_set, upper, True, idx)
     return _largest(cnt)
 
 
@@ -197,27 +146,9 @@ def _wall_candidate_pass(xs, cell_start, origin, cell, dims, reach, radius, near
 
 @njit(parallel=True, cache=True)
 def gather_walls(xq, xs, start, cand, origin, inv_cell, dims, radius, idx, cnt):
-    """gather_neighbours for static walls from their per-cell candidates (`wall_candidates`):
-    the same lists, one contiguous candidate range per query point instead of a row walk."""
-    nx, ny = dims[0], dims[1]
-    k_max = idx.shape[1]
-    r2 = radius * radius
+    """gather_neighbours for static walls from their per-cell candidates (`rows.wall_row`)."""
     for i in prange(xq.shape[0]):
-        xi0 = xq[i, 0]
-        xi1 = xq[i, 1]
-        xi2 = xq[i, 2]
-        cx, cy, cz = _cell_of(xi0, xi1, xi2, origin, inv_cell, dims)
-        c = (cz * ny + cy) * nx + cx
-        row_i = idx[i]
-        n = 0
-        for k in range(start[c], start[c + 1]):
-            j = cand[k]
-            d0 = xi0 - xs[j, 0]
-            d1 = xi1 - xs[j, 1]
-            d2 = xi2 - xs[j, 2]
-            row_i[min(n, k_max - 1)] = j  # branch-free append, as in gather_neighbours
-            n += np.int64(d0 * d0 + d1 * d1 + d2 * d2 < r2)
-        cnt[i] = n
+        cnt[i] = wall_row(i, xq, xs, start, cand, origin, inv_cell, dims, radius, True, idx)
     return _largest(cnt)
 
 

@@ -1,4 +1,4 @@
-"""`ipsph bench --sweep`: 4 members on a 2-worker x 1-thread LocalCluster against the same 4 run one after
+"""`python -m benchmarks sweep`: 4 members on a 2-worker x 1-thread LocalCluster against the same 4 run one after
 another with 2 threads each (issue 21).
 
 The members are the default dam break (3,724 fluid particles at r = 0.02, no renders) with
@@ -27,7 +27,7 @@ import time
 from pathlib import Path
 
 SWEEP_TOML = """\
-# ipsph bench --sweep: 4 members of the default dam break
+# python -m benchmarks sweep: 4 members of the default dam break
 scene = "{scene}"
 [set]
 "simulation.end_time" = {end}
@@ -39,9 +39,9 @@ scene = "{scene}"
 
 
 def bench_sweep(end_time: float, repeats: int, max_load: float, timeout: float, log) -> dict:
-    from ..ensemble import engine, records, spec
-    from ..scene import default_scene_path
-    from .machine import LoadSampler, timed_ipsph_run
+    from ipsph.ensemble import engine, records, spec
+    from ipsph.scene import default_scene_path
+    from ipsph.benchmark.machine import LoadSampler, timed_ipsph_run
 
     rows = []
     with tempfile.TemporaryDirectory(prefix="ipsph-bench-sweep-") as tmp:
@@ -62,7 +62,7 @@ def bench_sweep(end_time: float, repeats: int, max_load: float, timeout: float, 
             wall = time.perf_counter() - t0
             load = sampler.stop()
             if code != 0:
-                raise RuntimeError(f"ipsph bench --sweep: the sweep failed: {[r.get('reason') for r in recs]}")
+                raise RuntimeError(f"python -m benchmarks sweep: the sweep failed: {[r.get('reason') for r in recs]}")
             timings = records.read_sweep_json(out)["timings_s"]
             per_worker: dict[int, float] = {}
             for r in recs:
@@ -89,7 +89,7 @@ def bench_sweep(end_time: float, repeats: int, max_load: float, timeout: float, 
                 args = [str(default_scene_path()), "--no-render"] + [a for s in m.set_args() for a in ("--set", s)]
                 r = timed_ipsph_run(args, tmp / f"seq-{rep}-{m.name}", 2, timeout)
                 if r["exit_code"] != 0:
-                    raise RuntimeError(f"ipsph bench --sweep: ipsph run failed: {r['stderr_tail']}")
+                    raise RuntimeError(f"python -m benchmarks sweep: ipsph run failed: {r['stderr_tail']}")
                 seq += r["seconds"]
                 seq_load.append(r["load"].others_busy_mean * r["load"].cpus)
                 shutil.rmtree(tmp / f"seq-{rep}-{m.name}", ignore_errors=True)

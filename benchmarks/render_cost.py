@@ -1,7 +1,7 @@
 """What renders cost (issue 4).
 
-    ipsph bench --render-sizes 100000 1000000   # seconds per 1280x720 frame at N particles
-    ipsph bench --render-overhead --repeats 5   # the default scene's `ipsph run`, with and without renders
+    python -m benchmarks render-sizes 100000 1000000   # seconds per 1280x720 frame at N particles
+    python -m benchmarks render-overhead --repeats 5   # the default scene's `ipsph run`, with and without renders
 
 Per frame: a cubic block of N particles (a lattice at r = 0.01 m with a shear velocity field, so the
 colour map is exercised) inside a translucent box, rendered at the default 1280x720 by the
@@ -24,12 +24,12 @@ from pathlib import Path
 
 import numpy as np
 
-from . import overhead
+from ipsph.benchmark import overhead
 
 
 def _block(n: int):
-    from ..meshes import box_mesh
-    from ..params import spacing
+    from ipsph.meshes import box_mesh
+    from ipsph.params import spacing
 
     r = 0.01
     side = max(int(round(n ** (1 / 3))), 1)
@@ -44,8 +44,8 @@ def _block(n: int):
 
 def render_cost(n: int, frames: int = 3) -> dict:
     """Median seconds per frame at ~n particles: splat engine (draw, PNG) and the all-VTK engine."""
-    from ..model import RenderConfig
-    from ..render import FrameRenderer, gl_available, save_png
+    from ipsph.model import RenderConfig
+    from ipsph.render import FrameRenderer, gl_available, save_png
 
     ok, why = gl_available()
     if not ok:

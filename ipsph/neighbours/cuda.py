@@ -1,9 +1,10 @@
 """The neighbour search on the device: the same grid, the same sort and the same lists as
-`ipsph.neighbours.NeighbourSearch`, built by CUDA kernels.
+`neighbours.search.NeighbourSearch`, built by CUDA kernels that launch the same per-particle
+bodies (`rows`) as the CPU's.
 
 Per step, all on the device:
-  1. the cell of every fluid particle (`cpu_neighbours._cell_of`, the one binning rule, as a
-     device function);
+  1. the cell of every fluid particle (`rows.cell_of`, the one binning rule, as a device
+     function);
   2. a counting sort by cell: cell counts by atomic increments, their exclusive prefix sum
      (`exclusive_scan`, chunked and recursive: integer sums, exact in any order), a scatter
      into each cell's range, and a stable placement (each particle's rank among the lower
@@ -23,30 +24,19 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
-from ..neighbours import NeighbourSearch
-from . import cpu_neighbours
-from ._cuda import cuda, device_function
-from .cuda_passes import launch, take_rows
+from ..backends._cuda import cuda, device_function
+from ..backends.cuda_passes import launch, take_rows
+from . import rows
+from .search import NeighbourSearch
 
 SCAN_CHUNK = 256
 
 
-@njit(inline="always")
-def _reverse_row(idx, i, lo, hi):
-    """Reverse idx[i, lo:hi] in place."""
-    hi -= 1
-    while lo < hi:
-        t = idx[i, lo]
-        idx[i, lo] = idx[i, hi]
-        idx[i, hi] = t
-        lo += 1
-        hi -= 1
-
-
-_cell_of = device_function(cpu_neighbours._cell_of)
-_reverse = device_function(_reverse_row)
+_cell_of = device_function(rows.cell_of)
+_fluid_row = device_function(rows.fluid_row)
+_wall_row = device_function(rows.wall_row)
+_upper_first = device_function(rows.upper_first)
 
 
 @cuda.jit(cache=True)
@@ -127,75 +117,19 @@ def _place(cells, start, tmp, perm):
 
 @cuda.jit(cache=True)
 def _gather_fluid(xs, cell_start, origin, inv_cell, dims, radius, idx, cnt):
-    """cpu_neighbours.gather_neighbours(xs, xs, ..., same_set=True) then append_lower, in one
-    walk: the row [j > i ascending | j < i ascending] and its length (rows longer than the
-    stride are cut; the caller sees the count and rebuilds)."""
-    nx, ny, nz = dims[0], dims[1], dims[2]
-    k_max = idx.shape[1]
-    r2 = radius * radius
-    cell_y, cell_z = 1.0 / inv_cell[1], 1.0 / inv_cell[2]
-    reach_y = int(math.ceil(radius * inv_cell[1]))
-    reach_z = int(math.ceil(radius * inv_cell[2]))
+    """The CPU's gather_neighbours(same_set=True, upper=True) then append_lower, in one full walk
+    per thread: the row ascending, then rotated to [j > i ascending | j < i ascending]."""
     for i in range(cuda.grid(1), xs.shape[0], cuda.gridsize(1)):
-        xi0 = xs[i, 0]
-        xi1 = xs[i, 1]
-        xi2 = xs[i, 2]
-        _, cy, cz = _cell_of(xi0, xi1, xi2, origin, inv_cell, dims)
-        n = 0
-        n_lower = 0
-        for z in range(max(cz - reach_z, 0), min(cz + reach_z, nz - 1) + 1):
-            z_lo = origin[2] + z * cell_z
-            dz = max(z_lo - xi2, xi2 - (z_lo + cell_z), 0.0)
-            for y in range(max(cy - reach_y, 0), min(cy + reach_y, ny - 1) + 1):
-                y_lo = origin[1] + y * cell_y
-                dy = max(y_lo - xi1, xi1 - (y_lo + cell_y), 0.0)
-                rest = r2 - dy * dy - dz * dz
-                if rest <= 0.0:
-                    continue
-                half = math.sqrt(rest)
-                x_lo = min(max(int((xi0 - half - origin[0]) * inv_cell[0]), 0), nx - 1)
-                x_hi = min(max(int((xi0 + half - origin[0]) * inv_cell[0]), 0), nx - 1)
-                row = (z * ny + y) * nx
-                for j in range(cell_start[row + x_lo], cell_start[row + x_hi + 1]):
-                    d0 = xi0 - xs[j, 0]
-                    d1 = xi1 - xs[j, 1]
-                    d2 = xi2 - xs[j, 2]
-                    if j != i and d0 * d0 + d1 * d1 + d2 * d2 < r2:
-                        if n < k_max:
-                            idx[i, n] = j
-                        n += 1
-                        if j < i:
-                            n_lower += 1
+        n = _fluid_row(i, xs, xs, cell_start, origin, inv_cell, dims, radius, True, False, False, idx)
         cnt[i] = n
-        if n <= k_max and 0 < n_lower < n:  # rotate [lower | upper] to [upper | lower]: three reversals
-            _reverse(idx, i, 0, n_lower)
-            _reverse(idx, i, n_lower, n)
-            _reverse(idx, i, 0, n)
+        _upper_first(i, n, idx)
 
 
 @cuda.jit(cache=True)
 def _gather_walls(xq, xs, start, cand, origin, inv_cell, dims, radius, idx, cnt):
-    """cpu_neighbours.gather_walls: each particle tests its own cell's wall candidates."""
-    nx, ny = dims[0], dims[1]
-    k_max = idx.shape[1]
-    r2 = radius * radius
+    """The CPU's gather_walls: each particle tests its own cell's wall candidates."""
     for i in range(cuda.grid(1), xq.shape[0], cuda.gridsize(1)):
-        xi0 = xq[i, 0]
-        xi1 = xq[i, 1]
-        xi2 = xq[i, 2]
-        cx, cy, cz = _cell_of(xi0, xi1, xi2, origin, inv_cell, dims)
-        c = (cz * ny + cy) * nx + cx
-        n = 0
-        for k in range(start[c], start[c + 1]):
-            j = cand[k]
-            d0 = xi0 - xs[j, 0]
-            d1 = xi1 - xs[j, 1]
-            d2 = xi2 - xs[j, 2]
-            if d0 * d0 + d1 * d1 + d2 * d2 < r2:
-                if n < k_max:
-                    idx[i, n] = j
-                n += 1
-        cnt[i] = n
+        cnt[i] = _wall_row(i, xq, xs, start, cand, origin, inv_cell, dims, radius, False, idx)
 
 
 class DeviceNeighbourLists:
@@ -269,46 +203,28 @@ class CUDANeighbourSearch(NeighbourSearch):
         self._build(xs, s["start"])
         return perm
 
-    def _build(self, xs, fluid_start):
-        d = self._dev
-        n = xs.shape[0]
-        while True:
-            if (
-                self.lists is None
-                or self.lists.fluid.shape != (n, self.k_fluid)
-                or self.lists.boundary.shape != (n, self.k_boundary)
-            ):
-                self.lists = DeviceNeighbourLists(n, self.k_fluid, self.k_boundary)
-            nl = self.lists
-            launch(
-                _gather_fluid,
-                n,
-                xs,
-                fluid_start,
-                d["origin"],
-                d["inv_cell"],
-                d["dims"],
-                self.h,
-                nl.fluid,
-                nl.fluid_count,
-            )
-            launch(
-                _gather_walls,
-                n,
-                xs,
-                d["xb"],
-                d["start"],
-                d["cand"],
-                d["origin"],
-                d["inv_cell"],
-                d["dims"],
-                self.h,
-                nl.boundary,
-                nl.boundary_count,
-            )
-            most_f = int(self.be.reducer.max(nl.fluid_count)) if n else 0
-            most_b = int(self.be.reducer.max(nl.boundary_count)) if n else 0
-            if most_f <= self.k_fluid and most_b <= self.k_boundary:
-                return
-            self.k_fluid = max(self.k_fluid, int(math.ceil(most_f * 1.25 / 16) * 16))
-            self.k_boundary = max(self.k_boundary, int(math.ceil(most_b * 1.25 / 16) * 16))
+    def _new_lists(self, n: int) -> DeviceNeighbourLists:
+        return DeviceNeighbourLists(n, self.k_fluid, self.k_boundary)
+
+    def _gather(self, xs, fluid_start, nl) -> tuple[int, int]:
+        d, n = self._dev, xs.shape[0]
+        launch(
+            _gather_fluid, n, xs, fluid_start, d["origin"], d["inv_cell"], d["dims"], self.h, nl.fluid, nl.fluid_count
+        )
+        launch(
+            _gather_walls,
+            n,
+            xs,
+            d["xb"],
+            d["start"],
+            d["cand"],
+            d["origin"],
+            d["inv_cell"],
+            d["dims"],
+            self.h,
+            nl.boundary,
+            nl.boundary_count,
+        )
+        most_f = int(self.be.reducer.max(nl.fluid_count)) if n else 0
+        most_b = int(self.be.reducer.max(nl.boundary_count)) if n else 0
+        return most_f, most_b

@@ -1,6 +1,6 @@
 """The paper's Figure 4: the breaking dam, IPSPH beside PF at the same simulated times.
 
-    ipsph bench --figure4 OUT [--end-time T]
+    python -m benchmarks figure4 OUT [--end-time T]
 
 Runs pipelines/breaking_dam.toml with IPSPH and with PF (same scene, radius, time-step
 settings and colour range), then writes OUT/figure4_t<time>.png (IPSPH left, PF right) for a few
@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .scenes import pipeline_path
+from ipsph.benchmark.scenes import pipeline_path
 
 SNAPSHOT_FRACTIONS = (0.25, 0.5, 0.75, 1.0)
 
@@ -60,10 +60,10 @@ def _side_by_side(left: Path, right: Path, out: Path, labels=("IPSPH", "PF")) ->
 
 
 def figure4(out_dir: Path, end_time: float = 2.0, threads: int = 2, extra: list[str] | None = None) -> dict:
-    from ..io.provenance import read_run_json
-    from ..io.pvd import PvdSeries
-    from ..io.stats import read_stats
-    from ..plots import plot_runs
+    from ipsph.io.provenance import read_run_json
+    from ipsph.io.pvd import PvdSeries
+    from ipsph.io.stats import read_stats
+    from ipsph.plots import plot_runs
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)

@@ -1,4 +1,4 @@
-"""`ipsph bench --moving-walls`: the per-step cost of a moving wall and of a rigid body against the
+"""`python -m benchmarks moving-walls`: the per-step cost of a moving wall and of a rigid body against the
 same scene with the wall static (issue 19).
 
 One process, three variants of one scene (a tank of water with a box obstacle in it): the box
@@ -36,7 +36,7 @@ def _scene(kind: str, r: float) -> dict:
 def moving_cost(r: float = 0.02, repeats: int = 5, threads: int = 2, log=print) -> list[dict]:
     import numba
 
-    from ..simulation import Simulation
+    from ipsph.simulation import Simulation
 
     numba.set_num_threads(threads)
     sims = {}

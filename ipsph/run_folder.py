@@ -1,78 +1,23 @@
-"""The output folder of one run (layout: `ipsph.io`): its checks, frames, the PVD, stats rows,
-checkpoints, run.json, the progress line. No signal handling and no solver: the runner drives it
-from the time loop's callbacks.
+"""The output folder of one running simulation (layout: `ipsph.io`): its frames, the PVD, stats
+rows, checkpoints, run.json, renders and surfaces handed to their processes, the progress line.
+No signal handling and no solver: the runner drives it from the time loop's callbacks. (The checks
+before a run, and creating the folder: `ipsph.io.prepare`.)
 """
 
 from __future__ import annotations
 
-import os
-import shutil
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-from .. import checkpoint as ckpt
-from .. import io, paraview
-from ..errors import OutputError
-from . import provenance, pvd, stats, vtu
+from . import checkpoint as ckpt
+from . import io, paraview
+from .io import provenance, pvd, stats, vtu
 
 PROGRESS_EVERY_S = 10.0  # progress lines when stderr is not a terminal (a log file, a batch job)
 INTERRUPT_RENDER_WAIT_S = 10.0  # after Ctrl-C the frames in flight get this long to render; --resume does the rest
-
-
-def check_output_folder(out: Path, overwrite: bool, resume: bool) -> None:
-    """Refuse an unwritable folder, or one holding an earlier run (unless overwrite/resume).
-    Creates and deletes nothing: a refused run leaves no trace (`prepare_output_folder` does that
-    once every check has passed)."""
-    out = out.expanduser()
-    if out.exists() and not out.is_dir():
-        raise OutputError(f"output folder {out} (resolved {out.resolve()}) is a file; choose another -o")
-    if (out / io.RUN_JSON).exists() and not (overwrite or resume):
-        raise OutputError(
-            f"output folder {out} holds an earlier run; pass --overwrite to replace it or --resume to continue it"
-        )
-    if resume and not (out / io.RUN_JSON).exists():
-        raise OutputError(
-            f"--resume: output folder {out} (resolved {out.resolve()}) holds no earlier run "
-            f"to continue; run without --resume"
-        )
-    existing = out.resolve()
-    while not existing.exists():  # the deepest folder that exists must let us create the rest
-        existing = existing.parent
-    if not existing.is_dir() or not os.access(existing, os.W_OK | os.X_OK):
-        raise OutputError(
-            f"output folder {out} (resolved {out.resolve()}) is not writable: "
-            f"{existing} is {'not a folder' if not existing.is_dir() else 'read-only'}"
-        )
-
-
-# Everything a run (and `ipsph render` / `ipsph plot` into it) writes: --overwrite removes all of it.
-WRITTEN_DIRS = (io.FRAMES_DIR, io.RENDERS_DIR, io.PLOTS_DIR, io.SURFACES_DIR)
-WRITTEN_FILES = (
-    io.RUN_PVD,
-    io.BOUNDARY_VTU,
-    io.BOUNDARY_SURFACE,
-    io.STATS_CSV,
-    io.RUN_JSON,
-    ckpt.CHECKPOINT_FILE,
-    "video.mp4",
-    "video.gif",
-    io.PARAVIEW_SCRIPT,
-    *(p.series for p in io.PARTS if p.series),
-)
-
-
-def prepare_output_folder(out: Path, overwrite: bool, resume: bool) -> None:
-    """Create the folder, prove it writable, and with --overwrite remove the earlier run's files."""
-    out = out.expanduser()
-    io.check_writable(out)
-    if overwrite and not resume:
-        for name in WRITTEN_DIRS:
-            shutil.rmtree(out / name, ignore_errors=True)
-        for name in WRITTEN_FILES:
-            (out / name).unlink(missing_ok=True)
 
 
 class RunFolder:
@@ -128,13 +73,13 @@ class RunFolder:
         self.surface = self._write_surface()
         self.bodies = None  # moving walls and rigid bodies: bodies.csv, bodies/*.vtp (io.bodies)
         if sim.walls is not None:
-            from .bodies import BodiesLog
+            from .io.bodies import BodiesLog
 
             self.bodies = BodiesLog(out, None if resume is None else resume.time)
         self.renderer = self._configure_renderer(renderer) if renderer is not None else None
         self.surfacer = surfacer  # surfaces/*.vtp beside the solver (ipsph.surface_worker)
         if surfacer is not None:
-            from ..surface import container_bounds
+            from .containers import container_bounds
 
             clip = container_bounds(scene.boundaries)
             surfacer.configure(out, scene.particle_radius, scene.density0, scene.surface, clip)
@@ -214,7 +159,7 @@ class RunFolder:
         if not self.scene.boundaries:
             return None
         import pyvista as pv
-        from ..sampling import boundary_surface
+        from .sampling import boundary_surface
 
         static = [spec for spec in self.scene.boundaries if not spec.moving]  # moving ones: bodies/
         if not static:
@@ -226,7 +171,7 @@ class RunFolder:
     def _configure_renderer(self, worker):
         # No GL probe here: the render worker is itself a child process, so a missing GL stack
         # crashes it, not the run, and it starts while the solver sets up (a probe costs ~1 s).
-        from .. import render
+        from . import render
 
         sim, scene = self.sim, self.scene
         speed = max(
@@ -326,7 +271,7 @@ class RunFolder:
     def _progress(self, s) -> None:
         """The live line on a terminal (every step); elsewhere one line every PROGRESS_EVERY_S.
         The ETA is the run's own rate since its first step (which holds the JIT compilation)."""
-        from ..estimate import eta_seconds, fmt_duration
+        from .estimate import eta_seconds, fmt_duration
 
         now = time.perf_counter()
         if self._first_step is None:

@@ -19,7 +19,7 @@ step (methods/base.py):
   The sum is a serial scatter over the fluid particles' wall lists (fixed order: reproducible).
 
 Contacts (bodies with static walls and with each other) are one penalty spring-damper per pair
-of walls in touch, from their particles closer than CONTACT_DISTANCE_D * d (method.md section 9).
+of walls in touch, from their particles whose surfaces are closer than CONTACT_GAP_D * d (method.md section 9).
 """
 
 from __future__ import annotations
@@ -29,16 +29,15 @@ import math
 import numpy as np
 from numba import njit
 
-from .kernels import grad_w_factor
-from .model import BoundarySpec, Scene
-from .motion import Motion, quat_axis_angle, quat_matrix, quat_mul
+from ..kernels import grad_w_factor
+from ..model import BoundarySpec, Scene
+from ..motion import Motion, quat_axis_angle, quat_matrix, quat_mul
 
-CONTACT_DISTANCE_D = 1.0  # contact when two walls' particles are closer than d = 2r
-# Fluid starts at least this many spacings d from a rigid body's particles (other walls: 1 d). The
-# full-mass lattice against an Akinci wall reads up to 1.145 rho0 (method.md section 1): against a
-# static wall that is the corner pop; against a body it launched a floating crate out of the water at
-# t = 0. A gap of 1.5 d starts the fluid next to the body slightly under-dense instead.
-BODY_GAP_D = 1.5
+# Contact when two walls' surfaces are closer than this many d: their particles are then closer than
+# the sum of their layers' depths behind the surfaces (Boundary.depth) plus this gap. A dense body
+# rests with its surface within the gap of the floor's (the issue's d/4 bound); with the 0.1 d layers
+# of an earlier model, a particle distance of d was the same rule for a gap of 0.8 d.
+CONTACT_GAP_D = 0.2
 CONTACT_STEPS = 4.0  # contact stiffness: omega_c = 1 / (CONTACT_STEPS dt), stable explicit springs
 CONTACT_DAMPING = 1.0  # damping ratio of the contact spring (critical: no bounce)
 CONTACT_FRICTION = 0.5  # Coulomb friction coefficient capping the contact's viscous tangential damping
@@ -69,7 +68,7 @@ def wall_forces(x, xb, mb, groups, nb, cb, coeff, mf, h, fb):
 def mass_properties(spec: BoundarySpec, density: float) -> tuple[float, np.ndarray, np.ndarray]:
     """(mass, centre of mass, inertia tensor about it) of the closed surface at `density`:
     the divergence theorem over the triangles' tetrahedra from the origin."""
-    from .sampling import boundary_surface
+    from ..sampling import boundary_surface
 
     mesh = boundary_surface(spec).triangulate()
     pts = np.asarray(mesh.points, dtype=np.float64)
@@ -130,6 +129,12 @@ class RigidBody:
             self.q = quat_mul(quat_axis_angle(self.w, ang), self.q)
             self.q /= np.linalg.norm(self.q)
 
+    def correct(self, dt: float, df: np.ndarray, dtau: np.ndarray) -> None:
+        """Velocities only: the impulse dt (df, dtau) that the last `integrate` did not know of."""
+        r = self.rotation()
+        self.v = self.v + dt * df / self.mass
+        self.w = self.w + dt * (r @ self.inv_inertia_body @ r.T @ dtau)
+
     def place(self, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """World positions and velocities of particles placed at x0 at t = 0."""
         rel = (x0 - self.c0) @ self.rotation().T
@@ -175,6 +180,7 @@ class WallDriver:
                 self.kinematic.append((grp, spec.name, Motion(spec.motion, pivot)))
             self.force[grp] = (np.zeros(3), np.zeros(3))
         self._fb = np.zeros((boundary.n, 3))
+        self._predicted = None  # the forces the last move integrated (the prediction of the next reaction)
         self.surface_cache: dict = {}  # name -> the wall's surface at its placement (io.bodies)
         self.place(0.0)
 
@@ -192,14 +198,21 @@ class WallDriver:
             b.x[sel], b.v[sel] = body.place(b.x0[sel])
 
     def move(self, dt: float) -> None:
-        """To t + dt: bodies integrate the last reaction's forces and their contacts first."""
+        """To t + dt: bodies integrate the last reaction's forces and their contacts first.
+
+        When this step's reaction comes after the move (PF and IPSPH move the walls before their
+        projection), the last reaction is only the prediction of this step's: `reaction` then
+        corrects the bodies' velocities by the difference, so each step's impulse is its own
+        reaction and fluid plus bodies conserve momentum at every step's end (the pose keeps the
+        prediction: the walls do not move after the fluid was projected against them)."""
         if self.bodies:
             self._contacts(dt)
             for body in self.bodies:
                 body.integrate(dt, self.g)
+            self._predicted = {body.group: (body.force.copy(), body.torque.copy()) for body in self.bodies}
         self.place(self.t + dt)
 
-    def reaction(self, x, lists, dt: float, lam=None, k=()) -> None:
+    def reaction(self, x, lists, dt: float, lam=None, k=(), after_move: bool = False) -> None:
         """The fluid's force and torque on every moving wall in this step (module docstring)."""
         coeff = np.zeros(len(x))
         if lam is not None:
@@ -215,8 +228,12 @@ class WallDriver:
             f = self._fb[sel]
             centre = self._centre(grp)
             self.force[grp] = (f.sum(axis=0), np.cross(b.x[sel] - centre, f).sum(axis=0))
+        predicted = self._predicted if after_move else None
         for body in self.bodies:
             body.force, body.torque = self.force[body.group]
+            if predicted is not None:  # the move of this step used the last reaction: correct it
+                f0, tau0 = predicted[body.group]
+                body.correct(dt, body.force - f0, body.torque - tau0)
 
     def _centre(self, grp: int) -> np.ndarray:
         for body in self.bodies:
@@ -231,8 +248,9 @@ class WallDriver:
     # -- contacts ------------------------------------------------------------------------------
     def _contacts(self, dt: float) -> None:
         """One penalty spring-damper per (body, partner wall) in touch, from the pairs of their
-        particles closer than the contact distance d_c (partners: static and kinematic walls, other
-        bodies). With w_p = d_c - r_p > 0 over the pairs, the penetration is delta = max w_p, the
+        particles closer than the contact distance d_c,p = depth_a + depth_b + CONTACT_GAP_D d (their
+        layers' depths behind the two surfaces plus the gap; partners: static and kinematic walls, other
+        bodies). With w_p = d_c,p - r_p > 0 over the pairs, the penetration is delta = max w_p, the
         normal n the w-weighted mean of the pairs' directions and the contact point the w-weighted
         mean of the body's particles; then
 
@@ -243,10 +261,10 @@ class WallDriver:
         capped at CONTACT_FRICTION |f|. One contact, not one spring per pair: a spring per
         pair normalised by the pair count is not conservative (the count changes along the
         approach) and bounced a dropped box higher than it fell."""
-        from .boundary import radius_lists
+        from .particles import radius_lists
 
         b = self.boundary
-        dc = CONTACT_DISTANCE_D * self.d
+        gap = CONTACT_GAP_D * self.d
         om = 1.0 / (CONTACT_STEPS * dt)
         for body in self.bodies:
             body.contact_force = np.zeros(3)
@@ -257,7 +275,8 @@ class WallDriver:
             other = np.flatnonzero(b.groups != body.group)
             if len(other) == 0:
                 continue
-            order, nbr, cnt = radius_lists(np.ascontiguousarray(b.x[mine]), np.ascontiguousarray(b.x[other]), dc)
+            reach = float(b.depth[mine].max() + b.depth[other].max()) + gap
+            order, nbr, cnt = radius_lists(np.ascontiguousarray(b.x[mine]), np.ascontiguousarray(b.x[other]), reach)
             if cnt.sum() == 0:
                 continue
             rows = np.repeat(np.arange(len(mine)), cnt)
@@ -265,8 +284,12 @@ class WallDriver:
             p, q = mine[rows], other[order[cols]]
             diff = b.x[p] - b.x[q]
             r = np.linalg.norm(diff, axis=1)
+            w = b.depth[p] + b.depth[q] + gap - r  # how far the two surfaces overlap the contact gap
+            touch = w > 0.0
+            if not touch.any():
+                continue
+            p, q, diff, r, w = p[touch], q[touch], diff[touch], r[touch], w[touch]
             n_pair = diff / np.maximum(r, 1e-12)[:, None]
-            w = dc - r
             for grp_other in np.unique(b.groups[q]):
                 sel = b.groups[q] == grp_other
                 partner = by_group.get(int(grp_other))
@@ -350,17 +373,6 @@ def _quat_of(r: np.ndarray) -> np.ndarray:
     y = math.copysign(math.sqrt(max(0.0, 1.0 - r[0, 0] + r[1, 1] - r[2, 2])) / 2.0, r[0, 2] - r[2, 0])
     z = math.copysign(math.sqrt(max(0.0, 1.0 - r[0, 0] - r[1, 1] + r[2, 2])) / 2.0, r[1, 0] - r[0, 1])
     return np.array([w, x, y, z])
-
-
-def body_gap_mask(fluid_x: np.ndarray, scene: Scene, walls: list[np.ndarray], r: float) -> np.ndarray:
-    """True for the fluid particles at least BODY_GAP_D d from every rigid body's wall particles
-    (`walls`: the sampled particles of each scene boundary, in order)."""
-    from .point_kernels import nearest_distance
-
-    body = [w for spec, w in zip(scene.boundaries, walls) if spec.dynamic]
-    gap = BODY_GAP_D * 2.0 * r
-    pts = np.ascontiguousarray(np.concatenate(body))
-    return nearest_distance(np.ascontiguousarray(fluid_x), pts, gap) >= gap
 
 
 def boundary_groups(scene: Scene, counts: list[int]) -> np.ndarray | None:

@@ -1,0 +1,12 @@
+"""Boundary handling in one place: wall models, their particles and the walls that move.
+
+models.py     what a wall model provides; MODELS (simulation.boundary_model)
+sampling.py   a boundary's layer of wall particles, at the model's offset behind its surface
+particles.py  `Boundary`: positions, Akinci volumes (fitted to the rest lattice), velocities
+rigid.py      moving walls: kinematic walls, rigid bodies, the fluid's reaction, contacts
+"""
+
+from .models import MODELS, BoundaryModel, model_of
+from .particles import Boundary
+
+__all__ = ["MODELS", "Boundary", "BoundaryModel", "model_of"]
