@@ -43,7 +43,7 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--method", choices=METHOD_NAMES, help="override simulation.method")
     r.add_argument("--end-time", type=float, metavar="T", help="override simulation.end_time [s]")
     r.add_argument("--backend", choices=BACKEND_NAMES, help="override simulation.backend (cuda: an NVIDIA GPU)")
-    r.add_argument("--precision", choices=PRECISIONS, help="override simulation.precision (float32: cuda only)")
+    r.add_argument("--precision", choices=PRECISIONS, help="override simulation.precision")
     r.add_argument("--device", type=int, metavar="N", help="override simulation.device: the GPU to run on")
     g = r.add_mutually_exclusive_group()
     g.add_argument("--fps", type=float, metavar="F", help="frames per simulated second (default 25)")

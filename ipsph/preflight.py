@@ -116,13 +116,8 @@ def _extent_hint(spec) -> str:
 
 
 def check_backend(scene: Scene) -> None:
-    """simulation.backend can run here (for cuda: numba-cuda, a driver, the device), and the
-    precision is one it has; ConfigError naming what is missing, before anything is allocated."""
-    if scene.precision != "float64" and scene.backend == "cpu":
-        raise ConfigError(
-            f'simulation.precision = "{scene.precision}" needs simulation.backend = "cuda" '
-            f"(the CPU backend runs in float64)"
-        )
+    """simulation.backend can run here (for cuda: numba-cuda, a driver, the device); ConfigError
+    naming what is missing, before anything is allocated. Both backends have both precisions."""
     if scene.backend == "cuda":
         from .backends._cuda import unavailable
 

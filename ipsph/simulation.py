@@ -30,7 +30,7 @@ from .model import Role, Scene
 from .neighbours import search_for
 from .particles import ParticleState
 from .sampled import sample, sample_scene, wall_groups  # noqa: F401 - sample_scene: part of the Python API here
-from .settle import SETTLE_MAX_STEPS, wants_settle
+from .settle import SETTLE_MAX_STEPS, hydrostatic_pressure, wants_settle
 from .settle import settle as settle_pass
 
 
@@ -106,16 +106,28 @@ class Simulation:
         self.domain = self._domain(boundary_x)
         self.method.prepare()
         self.settle_report: dict = {}
-        if settle and wants_settle(scene, fluid_x, fluid_v, boundary_x):  # not when restoring a checkpoint
+        settled = settle and wants_settle(scene, fluid_x, fluid_v, boundary_x)  # not when restoring a checkpoint
+        if settled:
             self.settle_report = self.settle()
         vmax, _ = self.be.speed_energy(self.state.v, self.state.m)
         self.dt_next, self._clamped = self._cfl(self._wall_speed(vmax))
         if ts.dt_initial is not None:
             self.dt_next = min(ts.dt_initial, scene.rest_dt())
+        if settle and not settled and vmax == 0.0 and self.walls is None:
+            self.seed_hydrostatic()
 
     def settle(self, max_steps: int = SETTLE_MAX_STEPS) -> dict:
         """The pre-pass before t = 0 (`ipsph.settle.settle`); returns its report."""
         return settle_pass(self, max_steps)
+
+    def seed_hydrostatic(self) -> None:
+        """Fluid at rest standing on walls starts the method's warm starts from its hydrostatic
+        pressure (`ipsph.settle.hydrostatic_pressure`, method.md section 1): the first steps then
+        correct that seed near the walls and the free surfaces instead of loading the column up
+        from the floor."""
+        p = hydrostatic_pressure(self.scene, self.be.to_host(self.state.x), self.boundary.x)
+        if p is not None and np.any(p):
+            self.method.seed(self.be.asarray(p), self.dt_next)
 
     # -- construction -------------------------------------------------------------------------
     @classmethod

@@ -231,17 +231,23 @@ def case_moving_walls(steps: int = 8) -> dict:
 
 
 def case_float32(steps: int = 8) -> dict:
-    """IPSPH in float32 on the CUDA backend beside the CPU's float64, and a float32 free fall."""
+    """IPSPH in float32 on the CUDA backend beside the CPU's float64 and float32, and a float32 free fall."""
     cpu, gpu = twins(tank("ipsph"), "float32")
+    cpu32 = Simulation(cpu.scene, *sample_scene(cpu.scene)[:3], backend=get_backend("cpu", "float32"))
     rho0, d = cpu.scene.density0, cpu.spacing
     rows = []
     for _ in range(steps):
         dt = cpu.dt_next
         rc = cpu.step(dt)
         rg = gpu.step(dt)
+        r32 = cpu32.step(dt)
         diff = {
             f: np.abs(by_id(cpu, getattr(cpu, f)) - by_id(gpu, getattr(gpu, f))).max()
             for f in ("positions", "velocities", "densities")
+        }
+        same = {
+            f: np.abs(by_id(cpu32, getattr(cpu32, f)) - by_id(gpu, getattr(gpu, f))).max()
+            for f in ("positions", "densities")
         }
         rows.append(
             {
@@ -251,6 +257,11 @@ def case_float32(steps: int = 8) -> dict:
                 "density_error_mean": [rc.density_error_mean, rg.density_error_mean],
                 "density_error_max": [rc.density_error_max, rg.density_error_max],
                 "dtype": str(gpu.be.to_host(gpu.state.x).dtype),
+                # the CPU backend in float32 too (issue 28): the same storage rounding
+                "cpu32_dx_over_d": float(same["positions"] / d),
+                "cpu32_drho_over_rho0": float(same["densities"] / rho0),
+                "cpu32_it": [r32.pd_passes, rg.pd_passes, r32.divergence_iterations, rg.divergence_iterations],
+                "cpu32_dtype": str(cpu32.state.x.dtype),
             }
         )
     # free fall: a 3^3 block without walls, 0.3 m/s sideways

@@ -170,14 +170,28 @@ def test_ratios_add_same_round_pairs_and_fastest_runs():
     (line,) = report.ratio_lines(report.summarise(rows, 0.5), "S")
     # medians 4.0 / 4.0; rounds 3/2, 4/5, 5/4; fastest 3.0 / 2.0
     assert line.startswith("IPSPH / SPH-DFSPH: wall per simulated second 1.00x")
-    assert line.endswith("; same round 1.50 0.80 1.25, fastest/fastest 1.50x")
+    assert "; same round 1.50 0.80 1.25, fastest/fastest 1.50x;" in line
+    # ours 0.02 % mean, 0.04 % worst against the peer's 0.06 % and 0.1 %
+    assert line.endswith("; density error mean 0.020 % vs 0.060 % (within), worst 0.040 % vs 0.100 % (within)")
+
+
+def test_ratio_line_flags_a_looser_run():
+    n = report.normalise
+    # twice as fast, but at 0.07 % mean (0.14 % worst) against the peer's 0.06 % (0.1 %)
+    rows = [n(_ours(10, 1.0, err=0.07), "ours", "ipsph", "S"), n(_peer(8, 2.0), "peer", "dfsph", "S")]
+    (line,) = report.ratio_lines(report.summarise(rows, 0.5), "S")
+    assert line.startswith("IPSPH / SPH-DFSPH: wall per simulated second 0.50x")
+    assert line.endswith("density error mean 0.070 % vs 0.060 % (ABOVE), worst 0.140 % vs 0.100 % (ABOVE)")
 
 
 def test_ratios_fall_back_to_loaded_runs_and_say_so():
     n = report.normalise
     rows = [n(_ours(10, 3.0, others=1.0), "ours", "ipsph", "S"), n(_peer(8, 2.0, others=1.0), "peer", "dfsph", "S")]
     lines = report.ratio_lines(report.summarise(rows, 0.5), "S")
-    assert lines == ["IPSPH / SPH-DFSPH: wall per simulated second 1.50x, ms per step 1.25x (from LOADED runs)"]
+    assert lines == [
+        "IPSPH / SPH-DFSPH: wall per simulated second 1.50x, ms per step 1.25x (from LOADED runs); "
+        "density error mean 0.020 % vs 0.060 % (within), worst 0.040 % vs 0.100 % (within)"
+    ]
 
 
 def test_failed_run_is_a_note():
@@ -433,4 +447,6 @@ def test_baseline_rows_get_their_own_label_and_a_finer_ratio():
         r.update(source="baseline", label=r["label"] + report.BASELINE)
     (line,) = report.ratio_lines(report.summarise(rows + base, 0.5), "S")
     assert line.startswith("IPSPH / IPSPH (baseline): wall per simulated second 1.033x")  # 3.1 / 3.0
-    assert line.endswith("; same round 1.000 1.033 1.032, fastest/fastest 1.000x")
+    assert (
+        "; same round 1.000 1.033 1.032, fastest/fastest 1.000x; density error mean 0.020 % vs 0.020 % (within)" in line
+    )

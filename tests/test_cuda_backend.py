@@ -36,6 +36,11 @@ FLOAT64_REL = 1e-9
 #   ~ density error x d; measured 0.18 % of d).
 # - mean density error within test_physics's TANK_DENSITY_ERROR (0.05 %) plus what float64 leaves.
 FLOAT32_POSITION_D = 0.01
+# float32 on both backends (issue 28: the CPU has it too): the same storage rounding, so they differ
+# by float32 rounding grown over the steps, not by the solvers' tolerance. Measured over the 8 steps:
+# positions 7.7e-6 d, densities 2.2e-6 rho0, the same iteration counts.
+FLOAT32_TWINS_D = 1e-4
+FLOAT32_TWINS_RHO = 1e-5
 TANK_DENSITY_ERROR = 0.05e-2
 # float32 free fall: the fitted acceleration within test_physics's FREE_FALL_TOL of g, and the
 # sideways 0.3 m/s kept to 10 float32 ulps of 0.3 (3e-7) over the 6 steps.
@@ -158,6 +163,11 @@ def test_float32_within_the_physics_tolerances(results):
         assert r["dx_over_d"] <= FLOAT32_POSITION_D, f"step {step}: positions differ by {r['dx_over_d']:.3g} d"
         mean64, mean32 = r["density_error_mean"]
         assert mean32 <= mean64 + TANK_DENSITY_ERROR, f"step {step}: mean density error {mean32:.3g}"
+        assert r["cpu32_dtype"] == "float32"
+        assert r["cpu32_dx_over_d"] <= FLOAT32_TWINS_D, f"step {step}: CPU float32 {r['cpu32_dx_over_d']:.3g} d"
+        assert r["cpu32_drho_over_rho0"] <= FLOAT32_TWINS_RHO, f"step {step}: CPU float32 densities"
+        passes_cpu, passes_cuda, div_cpu, div_cuda = r["cpu32_it"]
+        assert (passes_cpu, div_cpu) == (passes_cuda, div_cuda), f"step {step}: iterations {r['cpu32_it']}"
     assert abs(res["fall_slope"] / -9.81 - 1) <= FREE_FALL_TOL, f"free fall a = {res['fall_slope']:.5f}"
     assert res["fall_vx_dev"] <= FREE_FALL_VX
 
@@ -377,5 +387,6 @@ def test_backend_cuda_without_a_gpu_exits_2_naming_what_is_missing(tmp_path):
     assert r.returncode == 2 and line.startswith("ipsph: error:") and "cuda" in line.lower(), r.stderr
     assert any(w in line for w in ("driver", "device", "numba-cuda")), line
     assert not out.exists(), "a refused run must create nothing"
-    r32 = _cli(["run", str(scene), "-o", str(out), "--precision", "float32"], {}, tmp_path)
-    assert r32.returncode == 2 and "float32" in r32.stderr and "cuda" in r32.stderr and not out.exists()
+    r32 = _cli(["run", str(scene), "-o", str(out), "--precision", "float32", "--end-time", "0.02"], {}, tmp_path)
+    assert r32.returncode == 0, r32.stderr  # the CPU backend has float32 too (issue 28)
+    assert json.loads((out / "run.json").read_text())["precision"] == "float32"

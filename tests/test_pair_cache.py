@@ -136,6 +136,7 @@ class SolveSpy(CPUBackend):
     """The CPU backend, noting whether each stiffness pass of the solves was handed a filled cache."""
 
     def __init__(self):
+        super().__init__()  # the backend's precision and its empty arrays
         self.calls = []
 
     def apply_stiffness(self, x, mf, dens, nl, pairs, h, k, dt, v, k_total):

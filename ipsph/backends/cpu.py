@@ -6,38 +6,44 @@ import numpy as np
 
 from . import cpu_passes as P
 from ..errors import ConfigError
+from ..params import PRECISIONS
 from .base import Backend, Densities
 
 
 class CPUBackend(Backend):
     name = "cpu"
-    NO_PAIRS = P.NO_PAIR_CACHE
-    NO_DISPLACEMENT = P.NO_DISPLACEMENT
 
     def __init__(self, precision: str = "float64", device: int = 0):
-        if precision != "float64":
-            # the CPU passes compute in float64 and are compiled (and cached) for float64 arrays
-            raise ConfigError(
-                f'simulation.precision = {precision!r} needs simulation.backend = "cuda": '
-                f"the CPU backend runs in float64"
-            )
+        if precision not in PRECISIONS:
+            raise ConfigError(f"simulation.precision = {precision!r}: use one of {', '.join(PRECISIONS)}")
+        # the storage type of the real arrays; the bodies compute in float64 either way (their
+        # scalars are float64) and sum in float64 (docs/method.md, "Backends and precision")
         self.precision = precision
+        self.real = np.dtype(precision)
+        self.NO_PAIRS = P.NO_PAIR_CACHE.astype(self.real)
+        self.NO_DISPLACEMENT = P.NO_DISPLACEMENT.astype(self.real)
+        self._every_particle = P.EVERY_PARTICLE.astype(self.real)
 
     # -- arrays -------------------------------------------------------------------------------------
+    def _dtype(self, dtype):
+        """'float64' (every caller's default) means this backend's precision."""
+        dt = np.dtype(dtype)
+        return self.real if dt == np.float64 else dt
+
     def zeros(self, n, shape=(), dtype="float64"):
-        return np.zeros((n, *shape), dtype=dtype)
+        return np.zeros((n, *shape), dtype=self._dtype(dtype))
 
     def empty(self, n, shape=(), dtype="float64"):
-        return np.empty((n, *shape), dtype=dtype)
+        return np.empty((n, *shape), dtype=self._dtype(dtype))
 
     def asarray(self, host, dtype="float64"):
-        return np.ascontiguousarray(host, dtype=dtype)
+        return np.ascontiguousarray(host, dtype=self._dtype(dtype))
 
     def to_host(self, a):
         return a
 
     def pair_buffer(self, n, k):
-        return np.empty((n, 3, k))
+        return np.empty((n, 3, k), dtype=self.real)
 
     # -- vector operations (numpy where it is the same arithmetic in the same order) ----------------
     def fill(self, a, value):
@@ -190,4 +196,4 @@ class CPUBackend(Backend):
         P.accelerate(v, dt, g)
 
     def warm_stiffness(self, k_total, scale, rate, n_nbrs, min_nbrs, warm):
-        P.warm_stiffness(k_total, scale, P.EVERY_PARTICLE if rate is None else rate, n_nbrs, min_nbrs, warm)
+        P.warm_stiffness(k_total, scale, self._every_particle if rate is None else rate, n_nbrs, min_nbrs, warm)

@@ -18,18 +18,17 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import ConfigError
+from ..params import PRECISIONS
 from . import _cuda
 from .base import Backend, Densities
-
-REALS = ("float64", "float32")
 
 
 class CUDABackend(Backend):
     name = "cuda"
 
     def __init__(self, precision: str = "float64", device: int = 0):
-        if precision not in REALS:
-            raise ConfigError(f"simulation.precision = {precision!r}: use one of {', '.join(REALS)}")
+        if precision not in PRECISIONS:
+            raise ConfigError(f"simulation.precision = {precision!r}: use one of {', '.join(PRECISIONS)}")
         why = _cuda.unavailable(device)
         if why is not None:
             raise ConfigError(f"--backend cuda: {why}")

@@ -300,9 +300,23 @@ def ratio_lines(groups, scene: str) -> list[str]:
         if b > 0 and d > 0 and not math.isnan(a):
             lines.append(
                 f"{mine} / {other.strip()}: wall per simulated second {a / b:.{q}f}x, ms per step "
-                f"{c / d:.{q}f}x{note}" + _round_ratios(here[mine]["quiet"], here[other]["quiet"], q)
+                f"{c / d:.{q}f}x{note}"
+                + _round_ratios(here[mine]["quiet"], here[other]["quiet"], q)
+                + _error_verdict(ours, p)
             )
     return lines
+
+
+def _error_verdict(ours: dict, peer: dict) -> str:
+    """'; density error mean 0.031 % vs 0.046 % (within), worst ... (ABOVE)': whether the faster run
+    is also as tight as the one it is compared with, so a looser run cannot pass as a win."""
+    parts = []
+    for key, name in (("err_mean", "mean"), ("err_worst", "worst")):
+        a, b = _f(ours.get(key)), _f(peer.get(key))
+        if math.isnan(a) or math.isnan(b):
+            continue
+        parts.append(f"{name} {a:.3f} % vs {b:.3f} % ({'within' if a <= b else 'ABOVE'})")
+    return "; density error " + ", ".join(parts) if parts else ""
 
 
 def _round_ratios(ours: list[dict], peer: list[dict], q: int = 2) -> str:

@@ -251,6 +251,11 @@ class Method:
     def prepare(self) -> None:
         """Called once before the first step (and after a checkpoint restore)."""
 
+    def seed(self, p, dt: float) -> None:
+        """Start the warm starts from the pressure field `p` of fluid at rest (the hydrostatic seed,
+        method.md section 1), as if a last step of `dt` had ended with it; a method without warm
+        starts ignores it."""
+
     def step(self, dt: float) -> StepReport:
         raise NotImplementedError
 

@@ -55,6 +55,15 @@ class DFSPH(Method):
             )
             self.wall_rate(st.x, d.dens)
 
+    def seed(self, p, dt: float) -> None:
+        """K = 2 p / rho0^2 in the density solve's warm start (p = K rho^2, section 2; the warm start
+        applies half of it); the state is already sorted and its densities current (prepare)."""
+        be, st = self.be, self.state
+        be.copy(st.pressure, p)
+        be.copy(st.k_dens, p)
+        be.scale(st.k_dens, 2.0 / (self.fluid.rho0 * self.fluid.rho0))
+        self.dt_prev = dt
+
     def step(self, dt: float) -> StepReport:
         be, st, d, fl, cfg, nl = self.be, self.state, self.data, self.fluid, self.cfg, self.lists
         rep = self.begin(dt)

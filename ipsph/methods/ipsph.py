@@ -39,6 +39,36 @@ class IPSPH(ProjectiveMethod):
         self.state.zeros("k_div")  # total divergence stiffness of the last step (warm start)
         self.state.zeros("pd_warm", (3,))  # the last step's final PF displacement d(Lam) (warm start)
 
+    def seed(self, p, dt: float) -> None:
+        """Lam = -p dt^2 / (rho0 w) (section 3: p = -rho0 Lam / dt^2, over the warm-start fraction w,
+        which the first step applies) and its PF displacement d(Lam) in pd_warm, at the sorted
+        positions; the pressure output starts at p."""
+        w = self.cfg.ipsph.warm_start
+        if w <= 0.0:
+            return
+        be, st, d, fl = self.be, self.state, self.data, self.fluid
+        (p,) = self.neighbour_search(p)
+        be.densities(st.x, fl.mf, self.boundary, self.lists, fl.h, fl.rho0, d.dens, be.NO_PAIRS)
+        be.copy(st.pressure, p)
+        be.copy(st.pd_lambda, p)
+        be.scale(st.pd_lambda, -dt * dt / (fl.rho0 * w))
+        be.viscosity(
+            st.x,
+            st.v,
+            fl.mf,
+            d.dens,
+            st.pd_lambda,
+            self.lists,
+            fl.h,
+            0.0,
+            0.0,
+            d.v_out,
+            d.drho,
+            st.pd_warm,
+            be.NO_PAIRS,
+        )
+        self.dt_prev = dt
+
     def step(self, dt: float) -> StepReport:
         be, st, d, cfg, div = self.be, self.state, self.data, self.cfg.ipsph, self.cfg.divergence
         rep = self.begin(dt)

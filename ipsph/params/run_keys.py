@@ -58,8 +58,8 @@ KEYS: tuple[Param, ...] = (
         "float64",
         "",
         "Storage type of the per-particle real "
-        "arrays: float64, or float32 (cuda only: half the memory and bandwidth; the passes still "
-        'compute in float64; docs/method.md, "Backends and precision").',
+        "arrays: float64, or float32 (half the memory and bandwidth; the passes still compute and sum "
+        'in float64; docs/method.md, "Backends and precision").',
         "precision",
         choices=PRECISIONS,
     ),
