@@ -121,13 +121,16 @@ def test_missing_scene_names_the_sweep_file(tmp_path, capsys):
 
 
 def test_local_layout_from_the_machine(monkeypatch):
-    monkeypatch.setattr(engine, "usable_cores", lambda: 8)
-    assert engine.local_layout(None, None) == (8, 1)
-    assert engine.local_layout(None, 2) == (4, 2)
-    assert engine.local_layout(2, None) == (2, 4)
-    assert engine.local_layout(3, 3) == (3, 3)
+    from ipsph.ensemble import cluster
+
+    monkeypatch.setattr(cluster, "usable_cores", lambda: 8)
+    assert cluster.local_layout(None, None) == (8, 1)
+    assert cluster.local_layout(None, 2) == (4, 2)
+    assert cluster.local_layout(2, None) == (2, 4)
+    assert cluster.local_layout(3, 3) == (3, 3)
+    assert engine.local_layout is cluster.local_layout  # what run_sweep calls
     with pytest.raises(ValueError, match="--workers 0"):
-        engine.local_layout(0, None)
+        cluster.local_layout(0, None)
 
 
 def test_docs_summary_table_is_generated_from_the_columns():
