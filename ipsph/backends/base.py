@@ -144,7 +144,7 @@ class Backend:
         raise NotImplementedError
 
     def viscous_setup(self, x, v, mf, dens, walls, nl, h, rho0, nu_dt, wall_factor, full, b, diag, wmat) -> None:
-        raise NotImplementedError  # the implicit viscosity's b, Jacobi diagonal, wall blocks (bodies.viscous_setup_at)
+        raise NotImplementedError  # the implicit viscosity's b, Jacobi diagonal, wall blocks (viscous_bodies.viscous_setup_at)
 
     def viscous_apply(self, x, p, mf, dens, nl, h, nu_dt, wmat, out, pdot) -> None:
         raise NotImplementedError  # out = A p, pdot_i = V_i p_i . out_i (bodies.viscous_apply_at)

@@ -29,17 +29,15 @@ from .bodies import (
     VISCOUS_APPLY_ROWS,
     VISCOUS_SETUP_ROWS,
     WALL_RATE_ROWS,
-    cg_precondition_at,
     density_at,
     density_residual_at,
     divergence_residual_at,
     pf_global_at,
     stiffness_at,
     viscosity_at,
-    viscous_apply_at,
-    viscous_setup_at,
     wall_rate_at,
 )
+from .viscous_bodies import cg_precondition_at, viscous_apply_at, viscous_setup_at
 from ..kernels import w
 
 CHUNKS = 64  # blocks of particles per pass, each with its own scratch buffer
@@ -237,7 +235,7 @@ def wall_rate(x, xb, mb, vb, nb, cb, h, gvb):
 
 @njit(parallel=True, fastmath=FAST, cache=True)
 def viscous_setup(x, v, mf, rho, xb, mb, vb, nf, cf, nb, cb, h, rho0, nu_dt, wall_factor, full, b, diag, wmat):
-    """bodies.viscous_setup_at for every particle: the implicit viscosity's right-hand side,
+    """viscous_bodies.viscous_setup_at for every particle: the implicit viscosity's right-hand side,
     Jacobi diagonal and wall blocks."""
     bufs = _buffers(VISCOUS_SETUP_ROWS, nf, nb)
     for c in prange(bufs.shape[0]):
@@ -250,7 +248,7 @@ def viscous_setup(x, v, mf, rho, xb, mb, vb, nf, cf, nb, cb, h, rho0, nu_dt, wal
 
 @njit(parallel=True, fastmath=FAST, cache=True)
 def viscous_apply(x, p, mf, rho, nf, cf, h, nu_dt, wmat, out, pdot):
-    """bodies.viscous_apply_at for every particle: out = A p, pdot_i = V_i p_i . out_i."""
+    """viscous_bodies.viscous_apply_at for every particle: out = A p, pdot_i = V_i p_i . out_i."""
     bufs = _fluid_buffers(VISCOUS_APPLY_ROWS, nf)
     for c in prange(bufs.shape[0]):
         lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
@@ -260,7 +258,7 @@ def viscous_apply(x, p, mf, rho, nf, cf, h, nu_dt, wmat, out, pdot):
 
 @njit(cache=True)
 def cg_precondition(r, diag, rho, mf, z, rz, rr):
-    """bodies.cg_precondition_at for every particle (element-wise)."""
+    """viscous_bodies.cg_precondition_at for every particle (element-wise)."""
     for i in range(r.shape[0]):
         cg_precondition_at(i, r, diag, rho, mf, z, rz, rr)
 

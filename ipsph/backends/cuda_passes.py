@@ -25,7 +25,7 @@ import math
 import numpy as np
 
 from .. import kernels
-from . import bodies
+from . import bodies, viscous_bodies
 from ._cuda import SIMULATOR, cuda, device_function
 from .bodies import (
     DENSITY_ROWS,
@@ -52,9 +52,9 @@ stiffness_at = device_function(bodies.stiffness_at)
 viscosity_at = device_function(bodies.viscosity_at)
 pf_global_at = device_function(bodies.pf_global_at)
 wall_rate_at = device_function(bodies.wall_rate_at)
-viscous_setup_at = device_function(bodies.viscous_setup_at)
-viscous_apply_at = device_function(bodies.viscous_apply_at)
-cg_precondition_at = device_function(bodies.cg_precondition_at)
+viscous_setup_at = device_function(viscous_bodies.viscous_setup_at)
+viscous_apply_at = device_function(viscous_bodies.viscous_apply_at)
+cg_precondition_at = device_function(viscous_bodies.cg_precondition_at)
 w = device_function(kernels.w)
 
 
@@ -260,7 +260,7 @@ def warm_stiffness(k_total, scale, rate, n_nbrs, min_nbrs, warm):
 
 @cuda.jit
 def cg_precondition(r, diag, rho, mf, z, rz, rr):
-    """bodies.cg_precondition_at for every particle (the implicit viscosity's Jacobi step)."""
+    """viscous_bodies.cg_precondition_at for every particle (the implicit viscosity's Jacobi step)."""
     for i in range(cuda.grid(1), r.shape[0], cuda.gridsize(1)):
         cg_precondition_at(i, r, diag, rho, mf, z, rz, rr)
 

@@ -3,7 +3,7 @@
     (I - nu dt L) v* = v,    L the SPH strain-rate operator of SPlisHSPlasH's Standard model [WKBB18],
 
 solved by conjugate gradients with a Jacobi preconditioner, matrix-free: every product A p is one
-neighbour pass (`bodies.viscous_apply_at`). A is symmetric positive definite in the volume-weighted
+neighbour pass (`viscous_bodies.viscous_apply_at`). A is symmetric positive definite in the volume-weighted
 inner product sum_i V_i a_i . b_i (V_i = mf / rho_i), which is the one CG uses; the walls enter as a
 constant diagonal block and a right-hand side (no-slip, moving walls' velocities included) or not at
 all (free-slip). The same solve serves the three methods: PF and IPSPH call it on the velocities
@@ -21,18 +21,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..backends.bodies import eps_of
+from ..backends.viscous_bodies import eps_of
 from ..kernels import grad_w_factor
 from ..params import spacing as lattice_spacing
 
-WALL_FACTOR = {"no-slip": 1.0, "free-slip": 0.0}  # simulation.viscosity_walls -> s_w (bodies.viscous_setup_at)
+WALL_FACTOR = {"no-slip": 1.0, "free-slip": 0.0}  # simulation.viscosity_walls -> s_w (viscous_bodies.viscous_setup_at)
 
 
 @functools.lru_cache(maxsize=None)
 def full_trace(spacing: float, h: float) -> float:
     """sum_j V k(r_j) r_j^2 over a complete lattice of spacing d (V = d^3, j != 0, r_j < H): the
     trace of the viscous operator's block sum_j V_j k_ij x_ij x_ij^T of a particle with a full
-    neighbourhood, what the walls complete next to a wall (bodies.viscous_setup_at)."""
+    neighbourhood, what the walls complete next to a wall (viscous_bodies.viscous_setup_at)."""
     m = int(math.ceil(h / spacing))
     g = np.arange(-m, m + 1) * spacing
     x = np.stack(np.meshgrid(g, g, g, indexing="ij"), -1).reshape(-1, 3)
