@@ -18,19 +18,21 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..boundary import MODELS
 from ..params import spacing
 from ..sampling import scaled_box
 
 PAD_D = 5  # water around the body, in spacings, on every side
 DEPTH_BELOW_D = 3  # water under a body at its draft, in spacings
 FREEBOARD_LIMIT_D = 1.0  # below one spacing of freeboard a body is awash: the resolution limit
+MESH_SIZE_D = 8  # the sphere's and the bunny's largest extent, in spacings
 # The body's volume is integrated over a SAMPLES^3 grid in its own frame: the fraction to 1/SAMPLES^3.
 SAMPLES = 16
-# A fluid particle counts as inside a body when its centre lies deeper than this (in d, half a particle
-# radius) under the surface, the bound the rigid-body tests have always used. At a convex edge a single
-# layer gives a quarter of a face's support, so fluid pressed against an edge reaches the edge line
-# (at rest at most 0.02 d past it, a 2000 kg/m^3 brick's 3 m/s plunge 0.13 d); the layer is 0.6 d in.
-INSIDE_D = 0.25
+# A fluid particle counts as inside a body when its centre has reached the body's wall layer, the
+# model's depth under the surface (0.6 d). Between the surface and the layer a single layer is thinnest
+# at convex edges (a quarter of a face's support), and fluid pressed against an edge gets into that band:
+# at rest at most 0.24 d (the cubes, the sphere), in 3 m/s impacts 0.27-0.29 d (method.md section 9).
+INSIDE_D = MODELS["akinci-volume"].obstacle_depth_d
 
 
 @dataclass
@@ -189,8 +191,108 @@ def run(methods, densities, sizes, models=(None,), r: float = 0.0125, end_time: 
                         f"{100 * f.expected:7.1f}% {100 * f.submerged:6.1f}% {100 * f.error:+6.1f}% "
                         f"{100 * f.heave:5.1f}% {f.inside:6d} {f.penetration:6.3f}d {f.lost:4d} {f.seconds:6.1f}{note}"
                     )
+    import tempfile
+    from pathlib import Path
+
+    import pyvista as pv
+
+    bunny = Path(__file__).resolve().parents[2] / "meshes" / "bunny.obj"
+    with tempfile.TemporaryDirectory(prefix="ipsph-buoyancy-") as tmp:
+        sphere = Path(tmp) / "sphere.vtp"
+        pv.Sphere(radius=0.5, theta_resolution=40, phi_resolution=40).save(sphere)
+        for name, path in (("sphere", sphere), ("bunny", bunny)):
+            if not path.exists():
+                out(f"# {name}: {path} not found (meshes/ ships with a clone of the repository)")
+                continue
+            for method in methods:
+                f = float_mesh(method, 500.0, str(path), MESH_SIZE_D * 2.0 * r, r, end_time)
+                rows.append(f)
+                out(
+                    f"{f.method:7} {name:15} {f.n_across:3d} {f.density:6.0f} {f.fluid:6d} "
+                    f"{100 * f.expected:7.1f}% {100 * f.submerged:6.1f}% {100 * f.error:+6.1f}% "
+                    f"{100 * f.heave:5.1f}% {f.inside:6d} {f.penetration:6.3f}d {f.lost:4d} {f.seconds:6.1f}"
+                )
     out(
         "# SPlisHSPlasH 2.19 (pysplishsplash), a 0.16 m box at r = 0.0125 (6.4 d), DFSPH, measured for issue 27: "
         "500/700/900 kg/m^3 -> 30.7/40.2/52.5 % (volume maps), 42.4/56.7/70.8 % (density maps)"
     )
     return rows
+
+
+def float_mesh(method: str, density: float, mesh: str, size: float, r: float = 0.0125, end_time: float = 3.0):
+    """A closed mesh body of `density`, scaled so that its largest extent is `size`, dropped in with its
+    centre at the water's level: its submerged volume fraction and how deep fluid got into it."""
+    import pyvista as pv
+
+    from ..inside import inside_mesh
+    from ..meshes import load_mesh
+    from ..scene import scene_from_dict
+    from ..simulation import Simulation
+
+    d = 2.0 * r
+    raw = load_mesh(mesh)
+    lo0, hi0 = np.array(raw.bounds[0::2]), np.array(raw.bounds[1::2])
+    scale = size / float((hi0 - lo0).max())
+    ext = (hi0 - lo0) * scale
+    slot = float(ext[[0, 2]].max()) + 2 * PAD_D * d
+    depth = float(ext[1]) + DEPTH_BELOW_D * d
+    centre = np.array([0.5 * slot, depth, 0.5 * slot])
+    shift = centre - 0.5 * (lo0 + hi0) * scale
+    spec = {
+        "simulation": {"method": method, "particle_radius": r, "end_time": end_time},
+        "fluid": [{"box": {"min": [0, 0, 0], "max": [slot, depth + 0.5 * d, slot]}}],
+        "boundary": [
+            {"name": "tank", "box": {"min": [0, 0, 0], "max": [slot, depth + float(ext[1]) + 4 * d, slot]}},
+            {
+                "name": "body",
+                "role": "obstacle",
+                "density": float(density),
+                "mesh": str(mesh),
+                "scale": [scale] * 3,
+                "translate": shift.tolist(),
+            },
+        ],
+        "render": {"enabled": False},
+    }
+    scene = scene_from_dict(spec)
+    t0 = time.perf_counter()
+    sim = Simulation.from_scene(scene)
+    body = sim.walls.bodies[0]
+    placed = raw.scale(scale, inplace=False).translate(shift, inplace=False)
+    lo, hi = np.array(placed.bounds[0::2]), np.array(placed.bounds[1::2])
+    u = [(np.arange(SAMPLES * 2) + 0.5) / (SAMPLES * 2) for _ in range(3)]
+    grid = np.stack(np.meshgrid(*u, indexing="ij"), axis=-1).reshape(-1, 3) * (hi - lo) + lo
+    interior = grid[inside_mesh(grid, placed, d / 4)]
+    n0 = sim.n_fluid
+    fractions, inside, deepest = [], [0], [0.0]
+
+    def on_step(_):
+        x = sim.positions
+        if sim.steps % 5 == 0:
+            local = (x - body.c) @ body.rotation() + body.c0
+            near = np.all((local > lo - d) & (local < hi + d), axis=1)
+            if near.any():
+                dist = pv.PolyData(local[near]).compute_implicit_distance(placed)["implicit_distance"]
+                depth = np.maximum(-np.asarray(dist), 0.0) / d
+                inside[0] = max(inside[0], int((depth > INSIDE_D).sum()))
+                deepest[0] = max(deepest[0], float(depth.max()))
+        if sim.time >= 0.5 * end_time:
+            level = free_surface(x, body.c, 0.5 * float(ext[[0, 2]].max()), d)
+            world = (interior - body.c0) @ body.rotation().T + body.c
+            fractions.append(float((world[:, 1] < level).mean()))
+
+    sim.run(on_step=on_step)
+    f = np.asarray(fractions)
+    return Float(
+        method,
+        scene.boundary_model,
+        density,
+        int(round(size / d)),
+        n0,
+        float(f.mean()),
+        float(f.std()),
+        inside[0],
+        deepest[0],
+        n0 - sim.n_fluid,
+        time.perf_counter() - t0,
+    )
