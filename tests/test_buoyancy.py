@@ -15,7 +15,10 @@ from ipsph.sampling import scaled_box
 from ipsph.simulation import Simulation
 
 # Archimedes within 5 % (relative) of rho_b / rho0: the issue's bound. Measured (3 s, the second half
-# averaged): IPSPH 500 / 700 kg/m^3 at 6 d across -3.0 / -1.7 %, 500 at 12 d +0.0 %; DFSPH -2.8 % at 500.
+# averaged): IPSPH 500 / 700 kg/m^3 at 6 d across -3.0 / +1.4 %, DFSPH -2.8 % and PF -2.4 % at 500; the
+# 12 d cubes (500: +0.0 %, 900: +4.2 %) and the sphere (-4.7 %) are `ipsph bench --buoyancy`'s, and the
+# earlier 0.1 d layer (-38 % at 500) its `--buoyancy-models akinci-surface` (kept out of the suite: a
+# 12 d cube costs two minutes).
 # Not asserted (method.md section 9): bodies whose draft is under about 4 d float too high (300 kg/m^3:
 # -16 % at 6 d, -11 % at 12 d); the 900 kg/m^3 cube at 12 d is within 5 % (+4.2 %) but fluid gets
 # 0.37 d into its top edges; at 6 d its 0.6 d of freeboard is below one spacing and it goes under.
@@ -25,20 +28,13 @@ ARCHIMEDES = 0.05
 @pytest.mark.slow
 @pytest.mark.parametrize(
     "method, n_across, density",
-    [("ipsph", 6, 500.0), ("ipsph", 6, 700.0), ("ipsph", 12, 500.0), ("dfsph", 6, 500.0), ("pf", 6, 500.0)],
+    [("ipsph", 6, 500.0), ("ipsph", 6, 700.0), ("dfsph", 6, 500.0), ("pf", 6, 500.0)],
 )
 def test_a_cube_floats_with_its_archimedes_draft(method, n_across, density):
     f = float_one(method, density, n_across)
     assert f.inside == 0, f"fluid got into the body ({f.penetration:.3f} d deep)"
     assert f.lost == 0
     assert abs(f.error) < ARCHIMEDES, (f.submerged, f.expected)
-
-
-def test_the_surface_model_floats_a_body_too_high():
-    """The control: with the layer 0.1 d behind the surface the same cube floats with d/2 of water
-    missing around it, far outside the bound (what every model before this one did)."""
-    f = float_one("ipsph", 500.0, 6, model="akinci-surface")
-    assert f.error < -2 * ARCHIMEDES, f.submerged
 
 
 def _drop(method: str) -> dict:

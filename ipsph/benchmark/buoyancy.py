@@ -142,23 +142,37 @@ def float_one(
     body = sim.walls.bodies[0]
     lo, hi = scaled_box(spec.boundaries[1])
     d = spacing(r)
+
+    def depth(x):
+        return penetration(x, body, lo, hi) / d
+
+    def fraction(x):
+        return submerged_fraction(body, lo, hi, free_surface(x, body.c, 0.5 * (hi[0] - lo[0]), d))
+
+    return _measure(sim, end_time, depth, fraction, method, density, n_across, t0)
+
+
+def _measure(sim, end_time: float, depth, fraction, method: str, density: float, n_across: int, t0: float, every=1):
+    """Run `sim` to its end; every `every` steps the deepest fluid particle under the body's surface
+    (`depth(x)`, in d), and over the second half the submerged fraction (`fraction(x)`)."""
     n0 = sim.n_fluid
     fractions, inside, deepest = [], [0], [0.0]
 
     def on_step(_):
         x = sim.positions
-        depth = penetration(x, body, lo, hi) / d
-        inside[0] = max(inside[0], int((depth > INSIDE_D).sum()))
-        deepest[0] = max(deepest[0], float(depth.max()))
+        if sim.steps % every == 0:
+            dd = depth(x)
+            if len(dd):
+                inside[0] = max(inside[0], int((dd > INSIDE_D).sum()))
+                deepest[0] = max(deepest[0], float(dd.max()))
         if sim.time >= 0.5 * end_time:
-            level = free_surface(x, body.c, 0.5 * (hi[0] - lo[0]), d)
-            fractions.append(submerged_fraction(body, lo, hi, level))
+            fractions.append(fraction(x))
 
     sim.run(on_step=on_step)
     f = np.asarray(fractions)
     return Float(
         method,
-        spec.boundary_model,
+        sim.scene.boundary_model,
         density,
         n_across,
         n0,
@@ -168,6 +182,14 @@ def float_one(
         deepest[0],
         n0 - sim.n_fluid,
         time.perf_counter() - t0,
+    )
+
+
+def _row(f: Float, label: str) -> str:
+    return (
+        f"{f.method:7} {label:15} {f.n_across:3d} {f.density:6.0f} {f.fluid:6d} "
+        f"{100 * f.expected:7.1f}% {100 * f.submerged:6.1f}% {100 * f.error:+6.1f}% "
+        f"{100 * f.heave:5.1f}% {f.inside:6d} {f.penetration:6.3f}d {f.lost:4d} {f.seconds:6.1f}"
     )
 
 
@@ -186,11 +208,7 @@ def run(methods, densities, sizes, models=(None,), r: float = 0.0125, end_time: 
                     f = float_one(method, rho, n, r, end_time, model)
                     rows.append(f)
                     note = "  awash: freeboard < 1 d (resolution limit)" if f.awash else ""
-                    out(
-                        f"{f.method:7} {f.model:15} {f.n_across:3d} {f.density:6.0f} {f.fluid:6d} "
-                        f"{100 * f.expected:7.1f}% {100 * f.submerged:6.1f}% {100 * f.error:+6.1f}% "
-                        f"{100 * f.heave:5.1f}% {f.inside:6d} {f.penetration:6.3f}d {f.lost:4d} {f.seconds:6.1f}{note}"
-                    )
+                    out(_row(f, f.model) + note)
     import tempfile
     from pathlib import Path
 
@@ -207,11 +225,7 @@ def run(methods, densities, sizes, models=(None,), r: float = 0.0125, end_time: 
             for method in methods:
                 f = float_mesh(method, 500.0, str(path), MESH_SIZE_D * 2.0 * r, r, end_time)
                 rows.append(f)
-                out(
-                    f"{f.method:7} {name:15} {f.n_across:3d} {f.density:6.0f} {f.fluid:6d} "
-                    f"{100 * f.expected:7.1f}% {100 * f.submerged:6.1f}% {100 * f.error:+6.1f}% "
-                    f"{100 * f.heave:5.1f}% {f.inside:6d} {f.penetration:6.3f}d {f.lost:4d} {f.seconds:6.1f}"
-                )
+                out(_row(f, name))
     out(
         "# SPlisHSPlasH 2.19 (pysplishsplash), a 0.16 m box at r = 0.0125 (6.4 d), DFSPH, measured for issue 27: "
         "500/700/900 kg/m^3 -> 30.7/40.2/52.5 % (volume maps), 42.4/56.7/70.8 % (density maps)"
@@ -263,36 +277,18 @@ def float_mesh(method: str, density: float, mesh: str, size: float, r: float = 0
     u = [(np.arange(SAMPLES * 2) + 0.5) / (SAMPLES * 2) for _ in range(3)]
     grid = np.stack(np.meshgrid(*u, indexing="ij"), axis=-1).reshape(-1, 3) * (hi - lo) + lo
     interior = grid[inside_mesh(grid, placed, d / 4)]
-    n0 = sim.n_fluid
-    fractions, inside, deepest = [], [0], [0.0]
 
-    def on_step(_):
-        x = sim.positions
-        if sim.steps % 5 == 0:
-            local = (x - body.c) @ body.rotation() + body.c0
-            near = np.all((local > lo - d) & (local < hi + d), axis=1)
-            if near.any():
-                dist = pv.PolyData(local[near]).compute_implicit_distance(placed)["implicit_distance"]
-                depth = np.maximum(-np.asarray(dist), 0.0) / d
-                inside[0] = max(inside[0], int((depth > INSIDE_D).sum()))
-                deepest[0] = max(deepest[0], float(depth.max()))
-        if sim.time >= 0.5 * end_time:
-            level = free_surface(x, body.c, 0.5 * float(ext[[0, 2]].max()), d)
-            world = (interior - body.c0) @ body.rotation().T + body.c
-            fractions.append(float((world[:, 1] < level).mean()))
+    def depth(x):
+        local = (x - body.c) @ body.rotation() + body.c0
+        near = np.all((local > lo - d) & (local < hi + d), axis=1)
+        if not near.any():
+            return np.zeros(0)
+        dist = pv.PolyData(local[near]).compute_implicit_distance(placed)["implicit_distance"]
+        return np.maximum(-np.asarray(dist), 0.0) / d
 
-    sim.run(on_step=on_step)
-    f = np.asarray(fractions)
-    return Float(
-        method,
-        scene.boundary_model,
-        density,
-        int(round(size / d)),
-        n0,
-        float(f.mean()),
-        float(f.std()),
-        inside[0],
-        deepest[0],
-        n0 - sim.n_fluid,
-        time.perf_counter() - t0,
-    )
+    def fraction(x):
+        level = free_surface(x, body.c, 0.5 * float(ext[[0, 2]].max()), d)
+        world = (interior - body.c0) @ body.rotation().T + body.c
+        return float((world[:, 1] < level).mean())
+
+    return _measure(sim, end_time, depth, fraction, method, density, int(round(size / d)), t0, every=5)
