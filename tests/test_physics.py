@@ -23,7 +23,7 @@ RHO0 = 1000.0
 TANK_DENSITY_ERROR = {"ipsph": 0.05e-2, "dfsph": 0.01e-2}
 # Interior pressure slope against rho0 g. Issue 16 asks 2 %, met by neither method robustly: the slope
 # of the settled tank moves with rounding-level changes of its trajectory. DFSPH reads +2.8 % to +5.1 %
-# across starts (validation.md); IPSPH read -0.4 % with numba 0.6x and reads +3.7 % with numba 0.68.1 /
+# across starts (validation.md); IPSPH read -0.4 % at the last landing's CI and reads +3.7 % with numba 0.68.1 /
 # llvmlite 0.50 on the same code (3dccf26), +4.1 % today. Both keep issue 3's 5 %.
 PRESSURE_SLOPE_TOL = {"ipsph": 0.05, "dfsph": 0.05}
 # Issue 3: free fall acceleration within 0.5 % of g (fitted on velocities, method.md section 5).
