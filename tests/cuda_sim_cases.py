@@ -166,29 +166,10 @@ def paddle_and_crate(method: str, r: float = 0.04):
     body of density 500 driven by the fluid's reaction), set into the fluid off its lattice: a
     crate face on the lattice puts fluid-wall pairs exactly at the support radius, where the two
     backends' last bits decide whether the first touch happens this step or the next."""
-    return scene_from_dict(
-        {
-            "simulation": {"method": method, "particle_radius": r, "end_time": 1.0},
-            "fluid": [{"box": {"min": [0, 0, 0], "max": [0.6, 0.3, 0.4]}}],
-            "boundary": [
-                {"name": "tank", "box": {"min": [0, 0, 0], "max": [1.0, 0.6, 0.4]}},
-                {
-                    "name": "paddle",
-                    "role": "obstacle",
-                    "box": {"min": [0.7, 0, 0], "max": [0.75, 0.6, 0.4]},
-                    "motion": {"type": "sinusoid", "amplitude": 0.05, "period": 0.5},
-                },
-                {
-                    "name": "crate",
-                    "role": "obstacle",
-                    "box": {"min": [0.213, 0.207, 0.107], "max": [0.413, 0.307, 0.307]},
-                    "density": 500.0,
-                },
-            ],
-            "render": {"enabled": False},
-        },
-        name=f"paddle-{method}",
-    )
+    from test_moving_walls import paddle_and_crate as scene
+
+    crate = ([0.213, 0.207, 0.107], [0.413, 0.307, 0.307])
+    return scene_from_dict(scene(r, crate, method), name=f"paddle-{method}")
 
 
 def case_moving_walls(steps: int = 8) -> dict:

@@ -206,13 +206,12 @@ def test_open_body_mesh_is_refused_naming_the_key(tmp_path, capsys):
     assert "boundary[1].mesh" in line and "closed" in line, line
 
 
-def test_a_checkpoint_continues_moving_walls_and_bodies_bit_identically(tmp_path):
-    """checkpoint.save / restore carries the walls' positions, groups and placements, the bodies'
-    states and the last reaction: 5 steps after a restore equal 5 uninterrupted ones, bit for bit."""
-    from ipsph import checkpoint
-
-    scene = {
-        "simulation": {"particle_radius": 0.05, "end_time": 1.0},
+def paddle_and_crate(r: float, crate: tuple, method: str | None = None) -> dict:
+    """A tank of water with a paddle on a sinusoid (a kinematic wall: amplitude 0.05 m, period 0.5 s)
+    and a floating crate (a rigid body of density 500) spanning `crate` = (min, max)."""
+    sim = {"particle_radius": r, "end_time": 1.0} | ({} if method is None else {"method": method})
+    return {
+        "simulation": sim,
         "fluid": [{"box": {"min": [0, 0, 0], "max": [0.6, 0.3, 0.4]}}],
         "boundary": [
             {"name": "tank", "box": {"min": [0, 0, 0], "max": [1.0, 0.6, 0.4]}},
@@ -222,15 +221,18 @@ def test_a_checkpoint_continues_moving_walls_and_bodies_bit_identically(tmp_path
                 "box": {"min": [0.7, 0, 0], "max": [0.75, 0.6, 0.4]},
                 "motion": {"type": "sinusoid", "amplitude": 0.05, "period": 0.5},
             },
-            {
-                "name": "crate",
-                "role": "obstacle",
-                "box": {"min": [0.2, 0.25, 0.1], "max": [0.4, 0.35, 0.3]},
-                "density": 500.0,
-            },
+            {"name": "crate", "role": "obstacle", "box": {"min": crate[0], "max": crate[1]}, "density": 500.0},
         ],
         "render": {"enabled": False},
     }
+
+
+def test_a_checkpoint_continues_moving_walls_and_bodies_bit_identically(tmp_path):
+    """checkpoint.save / restore carries the walls' positions, groups and placements, the bodies'
+    states and the last reaction: 5 steps after a restore equal 5 uninterrupted ones, bit for bit."""
+    from ipsph import checkpoint
+
+    scene = paddle_and_crate(0.05, ([0.2, 0.25, 0.1], [0.4, 0.35, 0.3]))
     a = Simulation.from_scene(scene)
     for _ in range(5):
         a.step()
