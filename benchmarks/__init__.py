@@ -6,6 +6,6 @@
     sweep_bench.py  `ipsph sweep` on a 2-worker LocalCluster against the same runs one after another
     moving_cost.py  per-step cost of a kinematic wall and of a rigid body against the same scene, static
 
-They build on `ipsph.benchmark` (the workers, the load sampling, the tables) and take the same
+They build on `ipsph.bench` (the workers, the load sampling, the tables) and take the same
 options as `ipsph bench` (--repeats, --threads, --end-time, --max-load, --markdown, --json, ...).
 """

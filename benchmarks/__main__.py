@@ -14,10 +14,10 @@ import argparse
 import sys
 from pathlib import Path
 
-from ipsph.benchmark.cli import _finish, add_arguments
-from ipsph.benchmark.machine import machine_info
-from ipsph.benchmark.runs import log, use_peer
-from ipsph.benchmark.scenes import PIPELINES
+from ipsph.bench.cli import _finish, add_arguments
+from ipsph.bench.machine import machine_info
+from ipsph.bench.runs import log, use_peer
+from ipsph.bench.scenes import PIPELINES
 from ipsph.errors import IpsphError
 
 STUDIES = ("table1", "figure4", "render-sizes", "render-overhead", "sweep", "moving-walls")

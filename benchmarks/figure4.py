@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ipsph.benchmark.scenes import pipeline_path
+from ipsph.bench.scenes import pipeline_path
 
 SNAPSHOT_FRACTIONS = (0.25, 0.5, 0.75, 1.0)
 
@@ -63,7 +63,7 @@ def figure4(out_dir: Path, end_time: float = 2.0, threads: int = 2, extra: list[
     from ipsph.io.provenance import read_run_json
     from ipsph.io.pvd import PvdSeries
     from ipsph.io.stats import read_stats
-    from ipsph.plots import plot_runs
+    from ipsph.post.plots import plot_runs
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)

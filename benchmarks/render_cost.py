@@ -24,11 +24,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ipsph.benchmark import overhead
+from ipsph.bench import overhead
 
 
 def _block(n: int):
-    from ipsph.meshes import box_mesh
+    from ipsph.geometry.meshes import box_mesh
     from ipsph.params import spacing
 
     r = 0.01
@@ -44,8 +44,8 @@ def _block(n: int):
 
 def render_cost(n: int, frames: int = 3) -> dict:
     """Median seconds per frame at ~n particles: splat engine (draw, PNG) and the all-VTK engine."""
-    from ipsph.model import RenderConfig
-    from ipsph.render import FrameRenderer, gl_available, save_png
+    from ipsph.config import RenderConfig
+    from ipsph.post.render import FrameRenderer, gl_available, save_png
 
     ok, why = gl_available()
     if not ok:

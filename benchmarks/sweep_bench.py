@@ -5,7 +5,7 @@ The members are the default dam break (3,724 fluid particles at r = 0.02, no ren
 simulation.method in (ipsph, dfsph) x simulation.viscosity in (0.01, 0.02), --end-time simulated seconds.
 Per repeat (sweep first, then the sequential runs, so machine noise falls on both):
 
-    sweep wall          `ipsph.ensemble.run_sweep` from call to return: validation, cluster start,
+    sweep wall          `ipsph.sweeps.run_sweep` from call to return: validation, cluster start,
                         shared-folder check, the members, cluster close
     sequential wall     the 4 `ipsph run --threads 2` one after another (each a fresh process, like a member)
     ratio               sequential / sweep (> 1: the sweep is faster)
@@ -39,9 +39,9 @@ scene = "{scene}"
 
 
 def bench_sweep(end_time: float, repeats: int, max_load: float, timeout: float, log) -> dict:
-    from ipsph.ensemble import engine, records, spec
+    from ipsph.sweeps import engine, records, spec
     from ipsph.scene import default_scene_path
-    from ipsph.benchmark.machine import LoadSampler, timed_ipsph_run
+    from ipsph.bench.machine import LoadSampler, timed_ipsph_run
 
     rows = []
     with tempfile.TemporaryDirectory(prefix="ipsph-bench-sweep-") as tmp:

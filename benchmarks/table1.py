@@ -8,10 +8,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ipsph.benchmark import report
-from ipsph.benchmark.report import _int, _num, format_table
-from ipsph.benchmark.runs import PEER_METHODS, interleaved
-from ipsph.benchmark.scenes import PIPELINES, pipeline_path, resolve_scene
+from ipsph.bench import report
+from ipsph.bench.report import _int, _num, format_table
+from ipsph.bench.runs import PEER_METHODS, interleaved
+from ipsph.bench.scenes import PIPELINES, pipeline_path, resolve_scene
 from ipsph.errors import ConfigError
 
 

@@ -15,7 +15,7 @@ def __getattr__(name):  # lazy: importing ipsph must stay cheap and side-effect 
 
         return load_scene
     if name == "sweep":
-        from .ensemble import sweep
+        from .sweeps import sweep
 
         return sweep
     raise AttributeError(name)

@@ -1,7 +1,7 @@
 import sys
 
 from .cli import main
-from .lifeline import die_with_parent
+from .sweeps.lifeline import die_with_parent
 
 die_with_parent()  # a sweep member's `ipsph run`: dies with its worker (no-op otherwise)
 sys.exit(main())

@@ -124,7 +124,7 @@ def _parser() -> argparse.ArgumentParser:
     pl.add_argument("-o", "--output", type=Path, help="folder for the PNGs (default: the first run's plots/)")
 
     sw = sub.add_parser("sweep", help="run a sweep of scene variations on a Dask cluster (docs/sweeps.md)")
-    from .ensemble.cli import add_arguments as sweep_arguments
+    from .sweeps.cli import add_arguments as sweep_arguments
 
     sweep_arguments(sw)
     pv = sub.add_parser(
@@ -136,7 +136,7 @@ def _parser() -> argparse.ArgumentParser:
     pv.add_argument("out", type=Path, help="output folder of `ipsph run`")
 
     b = sub.add_parser("bench", help="benchmark the methods (and SPlisHSPlasH, when installed)")
-    from .benchmark.cli import add_arguments
+    from .bench.cli import add_arguments
 
     add_arguments(b)
     return p
@@ -144,7 +144,7 @@ def _parser() -> argparse.ArgumentParser:
 
 def _run(args) -> int:
     os.environ.setdefault(*OMP_POLICY)  # before numba loads its OpenMP layer
-    from . import runner
+    from .run import runner
     from .scene import default_scene_path, load_scene
 
     overrides = list(args.set)
@@ -186,7 +186,7 @@ def _run(args) -> int:
 
 def _render(args) -> int:
     from .errors import InputError
-    from .render import gl_available, render_output
+    from .post.render import gl_available, render_output
 
     if not (args.out / "run.pvd").exists():
         raise InputError(
@@ -214,7 +214,7 @@ def _render(args) -> int:
 
 
 def _surface(args) -> int:
-    from .surface import surface_output
+    from .post.surface import surface_output
 
     res = surface_output(args.out, fmt=args.format, overrides=args.set, threads=args.threads)
     print(
@@ -232,8 +232,8 @@ def _surface(args) -> int:
 
 
 def _plot(args) -> int:
-    from .ensemble.records import plot_folders
-    from .plots import plot_runs
+    from .sweeps.records import plot_folders
+    from .post.plots import plot_runs
 
     dirs, target = plot_folders(list(args.out), args.output)  # a sweep folder stands for its members
     for p in plot_runs(dirs, target):
@@ -242,13 +242,13 @@ def _plot(args) -> int:
 
 
 def _sweep(args) -> int:
-    from .ensemble.cli import main as sweep_main
+    from .sweeps.cli import main as sweep_main
 
     return sweep_main(args)
 
 
 def _paraview(args) -> int:
-    from .paraview import write_view_script
+    from .post.paraview import write_view_script
 
     path = write_view_script(args.out)
     print(
@@ -260,7 +260,7 @@ def _paraview(args) -> int:
 
 
 def _bench(args) -> int:
-    from .benchmark.cli import main as bench_main
+    from .bench.cli import main as bench_main
 
     return bench_main(args)
 

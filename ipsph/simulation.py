@@ -26,12 +26,12 @@ from .boundary import model_of
 from .errors import NumericalFailure
 from .methods import METHODS
 from .methods.base import StepReport
-from .model import Role, Scene
+from .config import Role, Scene
 from .neighbours import search_for
-from .particles import ParticleState
-from .sampled import sample, sample_scene, wall_groups  # noqa: F401 - sample_scene: part of the Python API here
-from .settle import SETTLE_MAX_STEPS, hydrostatic_pressure, wants_settle
-from .settle import settle as settle_pass
+from .methods.state import ParticleState
+from .sampling.scene import sample, sample_scene, wall_groups  # noqa: F401 - sample_scene: part of the Python API here
+from .methods.settle import SETTLE_MAX_STEPS, hydrostatic_pressure, wants_settle
+from .methods.settle import settle as settle_pass
 
 
 @dataclass
@@ -43,7 +43,7 @@ class StepStats(StepReport):
     max_speed: float = 0.0
     kinetic_energy: float = 0.0
     dt_clamped: bool = False
-    emitted: int = 0  # particles emitted at the end of the step (ipsph.emitters)
+    emitted: int = 0  # particles emitted at the end of the step (ipsph.flow)
     removed: int = 0  # particles removed by sinks and the domain box
 
 
@@ -73,16 +73,16 @@ class Simulation:
         self.spacing = scene.spacing
         self.support = scene.support
         mass = scene.fluid_mass  # one fluid mass: the passes take it as a scalar
-        self.flow = None  # emitters, sinks, domain box (ipsph.emitters); None: a fixed particle count
+        self.flow = None  # emitters, sinks, domain box (ipsph.flow); None: a fixed particle count
         if scene.emitters or scene.sinks or scene.domain.min is not None:
-            from .emitters import Flow, planned_emission
+            from .flow import Flow, planned_emission
 
             first_id = int(np.max(fluid_ids)) + 1 if fluid_ids is not None and len(fluid_ids) else len(fluid_x)
             self.flow = Flow(scene, first_id)
             if capacity is None:
                 capacity = len(fluid_x) + planned_emission(scene)
         self.state = ParticleState(fluid_x, fluid_v, np.full(len(fluid_x), mass), fluid_ids, self.be, capacity)
-        from .sampling import rest_lattice
+        from .sampling.fluid import rest_lattice
 
         lattice = rest_lattice(scene, boundary_x) if scene.fit_wall_volumes else None
         groups, depth = wall_groups(scene, len(boundary_x), wall_counts)
@@ -117,12 +117,12 @@ class Simulation:
             self.seed_hydrostatic()
 
     def settle(self, max_steps: int = SETTLE_MAX_STEPS) -> dict:
-        """The pre-pass before t = 0 (`ipsph.settle.settle`); returns its report."""
+        """The pre-pass before t = 0 (`ipsph.methods.settle.settle`); returns its report."""
         return settle_pass(self, max_steps)
 
     def seed_hydrostatic(self) -> None:
         """Fluid at rest standing on walls starts the method's warm starts from its hydrostatic
-        pressure (`ipsph.settle.hydrostatic_pressure`, method.md section 1): the first steps then
+        pressure (`ipsph.methods.settle.hydrostatic_pressure`, method.md section 1): the first steps then
         correct that seed near the walls and the free surfaces instead of loading the column up
         from the floor."""
         p = hydrostatic_pressure(self.scene, self.be.to_host(self.state.x), self.boundary.x)

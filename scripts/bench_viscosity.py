@@ -1,4 +1,4 @@
-"""Issue 30's viscosity figures on the built-in dam break (ipsph/scenes/default.toml, 3,724
+"""Issue 30's viscosity figures on the built-in dam break (ipsph/scene/default.toml, 3,724
 particles, IPSPH, settle off), through the Python API (not yet part of `ipsph bench`):
 
 * the cost per step of each viscosity model at nu = 1e-2 m^2/s (xsph: the XSPH filter alone);

@@ -62,7 +62,7 @@ def make() -> pv.PolyData:
 
 
 def main() -> None:
-    from ipsph.meshes import check_closed, signed_volume
+    from ipsph.geometry.meshes import check_closed, signed_volume
 
     surf = make()
     check_closed(surf)

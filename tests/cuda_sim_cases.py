@@ -22,7 +22,7 @@ from ipsph.backends import Densities, get_backend  # noqa: E402
 from ipsph.neighbours import brute_force_neighbours  # noqa: E402
 from ipsph.scene import scene_from_dict  # noqa: E402
 from ipsph.methods.viscosity import ViscosityScratch, viscous_solve  # noqa: E402
-from ipsph.model import ViscosityConfig  # noqa: E402
+from ipsph.config import ViscosityConfig  # noqa: E402
 from ipsph.simulation import Simulation, sample_scene  # noqa: E402
 
 

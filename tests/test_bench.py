@@ -14,10 +14,10 @@ import pytest
 
 from benchmarks.__main__ import main as studies_main
 from benchmarks.table1 import table1
-from ipsph.benchmark import report
-from ipsph.benchmark.scaling import scaling_table
-from ipsph.benchmark.ours import run_ours
-from ipsph.benchmark.scenes import (
+from ipsph.bench import report
+from ipsph.bench.scaling import scaling_table
+from ipsph.bench.ours import run_ours
+from ipsph.bench.scenes import (
     PIPELINES,
     pipeline_path,
     resolve_scene,
@@ -48,7 +48,7 @@ def test_worker_steps_freely_without_a_frame_grid():
 
 def test_worker_returns_sane_json(tiny_run):
     r = tiny_run
-    assert r["fluid_particles"] == 3724  # 14 x 19 x 14, documented in ipsph/scenes/default.toml
+    assert r["fluid_particles"] == 3724  # 14 x 19 x 14, documented in ipsph/scene/default.toml
     assert r["boundary_particles"] > 0
     assert r["method"] == "ipsph" and r["threads"] == 1
     assert math.isclose(r["sim_time"], 0.02, rel_tol=1e-9)  # the end time lands exactly
@@ -267,7 +267,7 @@ def test_scaling_table_gives_iterations_and_error_for_ours_and_the_peer():
 
 # -- scenes ------------------------------------------------------------------------------------------
 def test_scaling_overrides_give_the_target_count():
-    from ipsph import sampling
+    from ipsph.sampling import fluid as sampling
     from ipsph.scene import default_scene_path, load_scene
 
     for n in (10_000, 100_000, 1_000_000):
@@ -284,7 +284,7 @@ def test_scaling_peer_scene_is_the_same_dam_break(tmp_path):
     FluidBlock rule), same tank as a closed, outward-wound box mesh, same radius and maximum step."""
     import json
 
-    from ipsph import meshes
+    from ipsph.geometry import meshes
     from ipsph.scene import default_scene_path, lattice_counts, load_scene
 
     n = 100_000
@@ -328,7 +328,7 @@ def test_bench_cli_missing_scene_exits_2(tmp_path, capsys):
     "stem, count", [("breaking_dam", 29**3), ("double_dam_break", 2 * 12 * 16 * 11), ("two_dragons", 19 * 39 * 39)]
 )
 def test_pipelines_load_with_their_particle_counts(stem, count):
-    from ipsph import sampling
+    from ipsph.sampling import fluid as sampling
     from ipsph.scene import load_scene
 
     assert stem in PIPELINES
@@ -429,7 +429,7 @@ def test_render_overhead_table_judges_the_median_ratio():
 
 
 def test_our_workers_keep_the_openmp_default_policy(monkeypatch):
-    from ipsph.benchmark.ours import ours_env
+    from ipsph.bench.ours import ours_env
 
     monkeypatch.delenv("OMP_WAIT_POLICY", raising=False)
     assert "OMP_WAIT_POLICY" not in ours_env(2)  # OpenMP's default, as the peer's workers

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from ipsph.boundary.rigid import mass_properties
-from ipsph.model import BoundarySpec, Role
+from ipsph.config import BoundarySpec, Role
 from ipsph.simulation import Simulation
 
 R = 0.025

@@ -10,8 +10,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ipsph.benchmark.buoyancy import INSIDE_D, float_one, free_surface, penetration
-from ipsph.sampling import scaled_box
+from ipsph.bench.buoyancy import INSIDE_D, float_one, free_surface, penetration
+from ipsph.geometry.shapes import scaled_box
 from ipsph.simulation import Simulation
 
 # Archimedes within 5 % (relative) of rho_b / rho0: the bound. Measured (3 s, the second half

@@ -12,9 +12,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ipsph import checkpoint as ckpt
-from ipsph import cli, runner
-from ipsph.emitters import nozzle
+from ipsph.run import checkpoint as ckpt
+from ipsph import cli
+from ipsph.run import runner
+from ipsph.flow import nozzle
 from ipsph.scene import load_scene, scene_from_dict
 from ipsph.simulation import Simulation
 

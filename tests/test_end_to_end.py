@@ -83,7 +83,7 @@ def test_stock_splishsplash_scenes_run_unchanged(tmp_path, scene, count):
 
 
 def test_renders_during_a_run(tmp_path):
-    from ipsph.render import gl_available
+    from ipsph.post.render import gl_available
 
     ok, why = gl_available()
     if not ok:

@@ -4,7 +4,7 @@ warm starts from rho0 g depth, lowered towards free side faces; fluid in free fa
 import numpy as np
 
 from ipsph.scene import scene_from_dict
-from ipsph.settle import hydrostatic_pressure
+from ipsph.methods.settle import hydrostatic_pressure
 from ipsph.simulation import Simulation, sample_scene
 
 R = 0.025

@@ -259,7 +259,7 @@ def test_stats_fresh_file_empty(tmp_path):
 def test_run_json_round_trip(tmp_path):
     from dataclasses import asdict
 
-    from ipsph.model import RenderConfig, Scene
+    from ipsph.config import RenderConfig, Scene
 
     scene = Scene(name="dam")
     info = {

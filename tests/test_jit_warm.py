@@ -1,4 +1,4 @@
-"""The cold-start compile helper (ipsph/jit_warm.py): its signature list matches what the methods
+"""The cold-start compile helper (ipsph/run/jit_warm.py): its signature list matches what the methods
 compile, and the helper really fills the Numba cache so that the run loads instead of compiling."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from ipsph import jit_warm
+from ipsph.run import jit_warm
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -19,7 +19,7 @@ _USED = """
 import gc, json, sys, tempfile
 from pathlib import Path
 from numba.core.registry import CPUDispatcher
-from ipsph import runner
+from ipsph.run import runner
 from ipsph.scene import default_scene_path, load_scene
 scene = load_scene(default_scene_path(), ["simulation.method=" + sys.argv[1], "simulation.particle_radius=0.04",
                                           "simulation.end_time=0.08"])
@@ -34,7 +34,7 @@ print(json.dumps(used))
 
 @pytest.mark.parametrize("method", jit_warm.METHODS)
 def test_the_signature_list_holds_every_kernel_a_method_runs(method):
-    """Fails when a kernel is added or its argument types change without `python -m ipsph.jit_record`
+    """Fails when a kernel is added or its argument types change without `python -m scripts.jit_record`
     (the helper would then compile the wrong thing and the cold start would not gain)."""
     env = dict(os.environ, IPSPH_NO_JIT_HELPER="1")
     out = subprocess.run(
@@ -43,18 +43,18 @@ def test_the_signature_list_holds_every_kernel_a_method_runs(method):
     assert out.returncode == 0, out.stderr
     used = {(m, q, tuple(s)) for m, q, s in json.loads(out.stdout.strip().splitlines()[-1])}
     listed = {(m, q, tuple(s)) for m, q, s in jit_warm.load_signatures()[method]}
-    assert used - listed == set(), "run `python -m ipsph.jit_record`"
+    assert used - listed == set(), "run `python -m scripts.jit_record`"
     assert listed - used == set(), "the list names kernels this method no longer runs"
 
 
 def test_the_signature_file_is_the_recorder_s_output():
-    """jit_signatures.json is generated (`python -m ipsph.jit_record`, which also has `--check`), never
+    """jit_signatures.json is generated (`python -m scripts.jit_record`, which also has `--check`), never
     edited by hand: its text is exactly what the recorder writes for its content, and the test
     above holds that content to what the methods compile."""
-    from ipsph import jit_record
+    from scripts import jit_record
 
     text = jit_warm.SIGNATURES_FILE.read_text()
-    assert text == jit_record.render_signatures(json.loads(text)["methods"]), "run `python -m ipsph.jit_record`"
+    assert text == jit_record.render_signatures(json.loads(text)["methods"]), "run `python -m scripts.jit_record`"
 
 
 def test_signatures_parse_back_to_numba_types():
@@ -71,11 +71,11 @@ def test_the_helper_fills_an_empty_cache_so_the_run_loads_instead_of_compiling(t
     (a small one) into the (empty) cache; a fresh process then finds it there (no compile event)."""
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
     last = jit_warm.load_signatures()["pf"][-1:]
-    probe = "import sys; from ipsph import jit_warm; print(jit_warm.missing_from_cache('pf'))"
+    probe = "import sys; from ipsph.run import jit_warm; print(jit_warm.missing_from_cache('pf'))"
     before = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, env=env, cwd=REPO)
     assert int(before.stdout) == len(jit_warm.load_signatures()["pf"])  # empty: everything missing
     res = subprocess.run(
-        [sys.executable, "-m", "ipsph.jit_warm", "pf", "1"],
+        [sys.executable, "-m", "ipsph.run.jit_warm", "pf", "1"],
         capture_output=True,
         text=True,
         env=env,
@@ -88,7 +88,7 @@ def test_the_helper_fills_an_empty_cache_so_the_run_loads_instead_of_compiling(t
     check = f"""
 import json
 from numba.core import event
-from ipsph import jit_warm
+from ipsph.run import jit_warm
 compiled = []
 class L(event.Listener):
     def on_start(self, ev): pass

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from numba import njit
 
-from ipsph.kernels import grad_w_factor, w, w_zero
+from ipsph.backends.kernels import grad_w_factor, w, w_zero
 
 
 @njit

@@ -1,4 +1,4 @@
-"""Mesh loading, checks, transforms and the inside test (ipsph.meshes)."""
+"""Mesh loading, checks, transforms and the inside test (ipsph.geometry.meshes)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ipsph import inside, meshes, model
+from ipsph.geometry import inside, meshes
+from ipsph import config as model
 from ipsph.errors import MeshError
 
 pv = pytest.importorskip("pyvista")

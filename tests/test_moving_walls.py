@@ -1,4 +1,4 @@
-"""Kinematic walls (issue 19): prescribed motions (ipsph.motion), the piston acceptance test, bad
+"""Kinematic walls (issue 19): prescribed motions (ipsph.boundary.motion), the piston acceptance test, bad
 motion input, and that static scenes do not see the moving-wall machinery."""
 
 from __future__ import annotations
@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from ipsph.model import Keyframe, MotionSpec
-from ipsph.motion import Motion
+from ipsph.config import Keyframe, MotionSpec
+from ipsph.boundary.motion import Motion
 from ipsph.boundary import MODELS
 from ipsph.simulation import Simulation
 
@@ -230,7 +230,7 @@ def paddle_and_crate(r: float, crate: tuple, method: str | None = None) -> dict:
 def test_a_checkpoint_continues_moving_walls_and_bodies_bit_identically(tmp_path):
     """checkpoint.save / restore carries the walls' positions, groups and placements, the bodies'
     states and the last reaction: 5 steps after a restore equal 5 uninterrupted ones, bit for bit."""
-    from ipsph import checkpoint
+    from ipsph.run import checkpoint
 
     scene = paddle_and_crate(0.05, ([0.2, 0.25, 0.1], [0.4, 0.35, 0.3]))
     a = Simulation.from_scene(scene)

@@ -14,7 +14,8 @@ from pathlib import Path
 
 import pytest
 
-from ipsph import cli, runner
+from ipsph import cli
+from ipsph.run import runner
 from ipsph.io import RUN_JSON, RUN_PVD
 from ipsph.io.pvd import PvdSeries
 
@@ -35,7 +36,7 @@ def run_cli(capsys, *args) -> tuple[int, str]:
 
 @pytest.fixture(scope="module")
 def gl():
-    from ipsph.render import gl_available
+    from ipsph.post.render import gl_available
 
     ok, why = gl_available()
     if not ok:
@@ -118,7 +119,7 @@ def test_a_refused_overwrite_keeps_the_earlier_run(tmp_path, capsys):
 
 # -- --overwrite clears what was written before -----------------------------------------------------
 def test_overwrite_removes_everything_the_earlier_run_wrote(tmp_path, capsys):
-    from ipsph.plots import plot_runs
+    from ipsph.post.plots import plot_runs
 
     out = tmp_path / "out"
     assert (
@@ -265,7 +266,7 @@ def test_a_run_of_hours_is_announced_and_needs_yes_off_a_terminal(tmp_path, caps
     code, err = run_cli(capsys, "-o", out, "--set", "simulation.particle_radius=0.002", "--max-particles", "100000000")
     assert code == 2 and "--yes" in err and "per simulated second" in err and "4,4" in err, err
     assert not out.exists()
-    from ipsph import estimate
+    from ipsph.run import estimate
     from ipsph.scene import default_scene_path, load_scene
 
     small = load_scene(default_scene_path())
@@ -280,7 +281,7 @@ def test_a_run_of_hours_is_announced_and_needs_yes_off_a_terminal(tmp_path, caps
 
 
 def test_progress_lines_reach_a_log_file(tmp_path, capsys, monkeypatch):
-    from ipsph import run_folder as folder
+    from ipsph.run import folder
 
     monkeypatch.setattr(folder, "PROGRESS_EVERY_S", 0.0)  # one line per step instead of every 10 s
     from ipsph.scene import default_scene_path, load_scene

@@ -10,7 +10,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from ipsph.kernels import grad_w_factor
+from ipsph.backends.kernels import grad_w_factor
 from ipsph.backends.cpu import CPUBackend
 from ipsph.backends.cpu_passes import (
     NO_DISPLACEMENT,

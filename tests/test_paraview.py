@@ -18,7 +18,7 @@ import pytest
 
 from ipsph.cli import main
 from ipsph.io.vtu import read_particles
-from ipsph.paraview import view_settings
+from ipsph.post.paraview import view_settings
 
 # --- tolerances ------------------------------------------------------------------------------
 # Issue 23: the SPH line through the hydrostatic tank: dp/dy within 5 % of rho0 g, density
@@ -160,7 +160,7 @@ def test_run_writes_named_parts_fluid_series_field_data_and_script(dam):
     assert m.field_data["particle_radius"][0] == r
     s = view_settings(dam)
     assert s["sph"]["spatial_step"] == pytest.approx(2 * r) and s["particle_radius"] == r
-    ns = {"__name__": "ipsph.paraview.view_script"}  # defines, runs nothing (no paraview here)
+    ns = {"__name__": "ipsph.post.paraview.view_script"}  # defines, runs nothing (no paraview here)
     exec((dam / "paraview_view.py").read_text(), ns)
     assert ns["SETTINGS"] == json.loads(json.dumps(s))
     assert s["files"] == {
@@ -176,7 +176,7 @@ def test_the_script_opens_every_part_of_run_pvd(dam, tmp_path):
     """Each part of run.pvd has a key in the script's files and a reader in the script; a run with
     moving walls (bodies.pvd) or --surface (surface.pvd) gets them filled in."""
     from ipsph.io import PARTS
-    from ipsph.paraview import PART_FILES, TEMPLATE
+    from ipsph.post.paraview import PART_FILES, TEMPLATE
 
     assert set(PART_FILES) == {p.name for p in PARTS}
     template = TEMPLATE.read_text()

@@ -13,8 +13,8 @@ from pathlib import Path
 
 import pytest
 
-from ipsph.benchmark import machine
-from ipsph.benchmark.machine import LoadSampler, load_sampler, machine_info, peak_rss_mb
+from ipsph.bench import machine
+from ipsph.bench.machine import LoadSampler, load_sampler, machine_info, peak_rss_mb
 from ipsph.errors import ConfigError
 
 SCENES = Path(__file__).resolve().parent / "data" / "splishsplash" / "Scenes"
@@ -91,7 +91,7 @@ def test_peak_rss_and_machine_info():
 # peer.py (argument checks need no peer)
 # ---------------------------------------------------------------------------------------------------
 def test_peer_param_args_and_env():
-    from ipsph.benchmark import peer
+    from ipsph.bench import peer
 
     args = peer._param_args(
         {
@@ -116,14 +116,14 @@ def test_peer_param_args_and_env():
     env = peer.peer_env(3)
     assert env["OMP_NUM_THREADS"] == "3"
     assert str(peer._REPO_ROOT) in env["PYTHONPATH"].split(os.pathsep)
-    assert (peer._REPO_ROOT / "ipsph" / "benchmark" / "peer.py").is_file()
+    assert (peer._REPO_ROOT / "ipsph" / "bench" / "peer.py").is_file()
 
 
 def test_worker_scene_rewrite_keeps_stock_scene(tmp_path):
     """The rewritten scene has absolute mesh paths, the method, stopAt, no exports, and the overrides."""
     import json
 
-    from ipsph.benchmark import _peer_worker as w
+    from ipsph.bench import _peer_worker as w
 
     src = tmp_path / "scenes" / "s.json"
     src.parent.mkdir()
@@ -148,7 +148,7 @@ def test_worker_scene_rewrite_keeps_stock_scene(tmp_path):
 
 
 def test_run_peer_rejects_bad_arguments(tmp_path):
-    from ipsph.benchmark.peer import run_peer
+    from ipsph.bench.peer import run_peer
 
     scene = tmp_path / "scene.json"  # argument checks come before the scene is read: any file will do
     scene.write_text("{}")
@@ -166,7 +166,7 @@ def test_run_peer_rejects_bad_arguments(tmp_path):
 # peer.py against the real SPlisHSPlasH (skipped unless installed)
 # ---------------------------------------------------------------------------------------------------
 def _require_peer():
-    from ipsph.benchmark.peer import peer_available
+    from ipsph.bench.peer import peer_available
 
     ok, why = peer_available()
     if not ok:
@@ -174,7 +174,7 @@ def _require_peer():
 
 
 def test_peer_available_reports_a_reason():
-    from ipsph.benchmark.peer import peer_available
+    from ipsph.bench.peer import peer_available
 
     ok, why = peer_available()
     assert isinstance(ok, bool) and isinstance(why, str) and why
@@ -185,7 +185,7 @@ def test_peer_available_reports_a_reason():
 def test_peer_short_double_dam_break(method):
     """DoubleDamBreak for 0.05 s with Akinci boundary particles (fast init: no volume map to build)."""
     _require_peer()
-    from ipsph.benchmark.peer import run_peer
+    from ipsph.bench.peer import run_peer
 
     r = run_peer(
         SCENES / "DoubleDamBreak.json", method, 0.05, threads=2, params={"boundaryHandlingMethod": 0}, timeout=600
@@ -215,8 +215,8 @@ def test_peer_runs_the_scaling_dam_break(tmp_path):
     """`ipsph bench --scaling`'s SPlisHSPlasH rows: its copy of our dam break holds our fluid count
     (the shared FluidBlocks rule), Akinci walls, and takes its 5 ms maximum step from rest."""
     _require_peer()
-    from ipsph.benchmark.peer import run_peer
-    from ipsph.benchmark.scenes import scaling_count, scaling_peer_scene
+    from ipsph.bench.peer import run_peer
+    from ipsph.bench.scenes import scaling_count, scaling_peer_scene
 
     n = 3000
     r = run_peer(scaling_peer_scene(n, tmp_path), "dfsph", 4 * 0.005 * (1 + 1e-6), threads=2, timeout=600)
@@ -229,7 +229,7 @@ def test_peer_runs_the_scaling_dam_break(tmp_path):
 
 def test_peer_failure_raises_with_stderr_tail(tmp_path):
     _require_peer()
-    from ipsph.benchmark.peer import run_peer
+    from ipsph.bench.peer import run_peer
 
     bad = tmp_path / "bad.json"
     bad.write_text('{"Configuration": {}, "RigidBodies": [{"geometryFile": "nope.obj"}]}')
@@ -239,7 +239,7 @@ def test_peer_failure_raises_with_stderr_tail(tmp_path):
 
 def test_peer_unavailable_is_reported_not_raised(monkeypatch, tmp_path):
     """Without pySPlisHSPlasH (as in CI): peer_available says why, run_peer raises RuntimeError."""
-    from ipsph.benchmark import peer
+    from ipsph.bench import peer
 
     peer.peer_available.cache_clear()
     monkeypatch.setattr(peer.importlib.util, "find_spec", lambda name, *a: None)

@@ -10,7 +10,7 @@ import json
 import numpy as np
 import pytest
 
-from ipsph import meshes
+from ipsph.geometry import meshes
 from ipsph.scene import load_scene, scene_from_dict
 from ipsph.simulation import Simulation, sample_scene, wants_settle
 
@@ -202,7 +202,7 @@ def test_only_pools_are_settled():
     middle dry), nor a block thrown in, nor PF (it never comes to rest)."""
     from importlib.resources import files
 
-    dam = load_scene(files("ipsph") / "scenes" / "default.toml")
+    dam = load_scene(files("ipsph") / "scene" / "default.toml")
     assert not wants_settle(dam, *sample_scene(dam)[:3])
     two = scene_from_dict(
         {

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from ipsph import runner
+from ipsph.run import runner
 from ipsph.io.provenance import read_run_json
 from ipsph.scene import load_scene
 
@@ -98,7 +98,7 @@ def test_shipped_data_matches_its_provenance(folder):
 
 
 def test_shipped_meshes_are_closed_solids():
-    from ipsph import meshes
+    from ipsph.geometry import meshes
 
     for path in sorted((REPO / "meshes").glob("*.obj")):
         mesh, report = meshes.prepare_mesh(path)

@@ -8,7 +8,7 @@ import pytest
 from ipsph.errors import OutputError
 from ipsph.io.provenance import write_run_json
 from ipsph.io.stats import STATS_COLUMNS, StatsWriter
-from ipsph.plots import plot_runs
+from ipsph.post.plots import plot_runs
 
 
 def _run(folder, method, scale):

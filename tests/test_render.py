@@ -18,8 +18,8 @@ from ipsph.io.provenance import write_run_json
 from ipsph.io.pvd import PvdSeries
 from ipsph.io.stats import STATS_COLUMNS, StatsWriter
 from ipsph.io.vtu import write_particles, write_surface
-from ipsph.model import RenderConfig
-from ipsph.render import (
+from ipsph.config import RenderConfig
+from ipsph.post.render import (
     VIEWS,
     camera_for_view,
     default_speed_range,
@@ -104,7 +104,7 @@ def test_colormap_runs_dark_blue_to_white_with_rising_lightness():
 
 def test_render_lut_is_the_plot_colormap():
     """The renders' lookup table (built without matplotlib) is the colormap the plots and docs use."""
-    from ipsph.render import speed_lut_rgb
+    from ipsph.post.render import speed_lut_rgb
 
     lut = speed_lut_rgb()
     assert lut.shape == (256, 3)
@@ -114,7 +114,7 @@ def test_render_lut_is_the_plot_colormap():
 def _assert_framed(bounds, pos, focal, up, w=1280, h=720):
     """Every corner of `bounds` projects inside the frame region: in the image, off the colour bar
     (right of FRAME_RIGHT) and off the time label and title (beyond FRAME_V)."""
-    from ipsph.render import FRAME_LEFT, FRAME_RIGHT, FRAME_V
+    from ipsph.post.render import FRAME_LEFT, FRAME_RIGHT, FRAME_V
 
     pos, focal, up = map(np.asarray, (pos, focal, up))
     fwd = (focal - pos) / np.linalg.norm(focal - pos)
@@ -161,13 +161,13 @@ def test_camera_explicit_and_bad_view():
 
 @pytest.mark.parametrize("shape", [(1, 1), (7, 13), (180, 320)])
 def test_png_encoder_round_trips_exactly(shape):
-    """ipsph.render.splat.encode_png (Up filter + zlib, hand-rolled for speed) is a valid PNG that Pillow
+    """ipsph.post.render.splat.encode_png (Up filter + zlib, hand-rolled for speed) is a valid PNG that Pillow
     decodes to the very same pixels: random noise and a smooth gradient with flat rows."""
     import io
 
     from PIL import Image
 
-    from ipsph.render.splat import encode_png
+    from ipsph.post.render.splat import encode_png
 
     h, w = shape
     rng = np.random.default_rng(1)
@@ -196,7 +196,7 @@ def _png(path):
 
 
 def test_frame_renders_and_is_not_uniform(gl, tmp_path):
-    from ipsph.render import FrameRenderer
+    from ipsph.post.render import FrameRenderer
 
     rng = np.random.default_rng(0)
     pts = rng.random((2000, 3))
@@ -213,7 +213,7 @@ def test_faster_particles_are_lighter(gl, tmp_path):
     shading is the same for all; only the colour map changes)."""
     from vtkmodules.vtkRenderingCore import vtkCoordinate
 
-    from ipsph.render import FrameRenderer
+    from ipsph.post.render import FrameRenderer
 
     x = np.linspace(0.05, 0.95, 12)
     pts = np.c_[x, np.full_like(x, 0.5), np.zeros_like(x)]
@@ -237,7 +237,7 @@ def test_faster_particles_are_lighter(gl, tmp_path):
 def test_same_frame_twice_gives_identical_pixels(gl, tmp_path):
     import pyvista as pv
 
-    from ipsph.render import FrameRenderer
+    from ipsph.post.render import FrameRenderer
 
     rng = np.random.default_rng(3)
     pts, vel = rng.random((3000, 3)), rng.random((3000, 3))
@@ -298,7 +298,7 @@ def test_splat_engine_matches_the_all_vtk_render(gl, tmp_path):
     (each of those alone moves > 3 % of pixels here)."""
     import pyvista as pv
 
-    from ipsph.render import FrameRenderer
+    from ipsph.post.render import FrameRenderer
 
     rng = np.random.default_rng(7)
     pts = rng.uniform((-0.1, 0.0, -0.1), (1.1, 1.0, 1.1), (2500, 3))
@@ -325,7 +325,7 @@ def test_run_without_gl_warns_once_and_keeps_the_simulation(tmp_path):
 
     env = dict(os.environ, __EGL_VENDOR_LIBRARY_FILENAMES=str(tmp_path / "no-such-vendor.json"))
     probe = subprocess.run(
-        [sys.executable, "-c", "from ipsph.render import gl_available; print(gl_available()[0])"],
+        [sys.executable, "-c", "from ipsph.post.render import gl_available; print(gl_available()[0])"],
         env=env,
         capture_output=True,
         text=True,

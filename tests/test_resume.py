@@ -14,7 +14,7 @@ import pytest
 
 import ipsph
 from ipsph import cli
-from ipsph.run_folder import RunFolder
+from ipsph.run.folder import RunFolder
 from ipsph.io import RUN_JSON, RUN_PVD, STATS_CSV, vtu
 from ipsph.io.pvd import PvdSeries
 from ipsph.io.stats import read_stats

@@ -1,4 +1,4 @@
-"""Fluid lattices, boundary samples, overlap removal and the sampling cache (ipsph.sampling)."""
+"""Fluid lattices, boundary samples, overlap removal and the sampling cache (ipsph.sampling.fluid)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ipsph import inside, meshes, model, sampling
+from ipsph.geometry import inside, meshes
+from ipsph import config as model
+from ipsph.geometry import points as geom_points
+from ipsph.geometry import shapes
+from ipsph.sampling import fluid as sampling
 from ipsph.boundary import MODELS as WALL_MODELS
 from ipsph.boundary.models import CONTAINER_OFFSET_D
 from ipsph.boundary.sampling import boundary_positions
@@ -64,7 +68,7 @@ def surface_points(mesh, n, seed=0):
 
 
 def spacing_stats(points, r):
-    nn = sampling.nearest_distance(points, points, 4.0 * r, exclude_self=True)
+    nn = geom_points.nearest_distance(points, points, 4.0 * r, exclude_self=True)
     return nn.min() / r, nn.mean() / r, nn.max() / r
 
 
@@ -177,7 +181,7 @@ def test_open_fluid_mesh_refused_unless_allowed(tmp_path):
 def box_coverage(points, lo, hi, r):
     box = meshes.box_mesh(lo, hi)
     q = surface_points(box, 50_000)
-    return sampling.nearest_distance(q, points, 4 * r).max() / r
+    return geom_points.nearest_distance(q, points, 4 * r).max() / r
 
 
 def test_dambreak_container_unitbox_is_a_box_grid():
@@ -237,8 +241,8 @@ def test_mesh_boundary_spacing_and_coverage(tmp_path, loader, scale, r):
     # coverage: every candidate lies within r of a sample and candidates are r/5 apart, so every
     # surface point is within r + r/5 of a sample (a gap of at most 2.4 r between sample spheres'
     # centres, usually < 2.1 r): assert the 1.2 r bound on 100k surface points
-    q = surface_points(sampling.boundary_surface(spec), 100_000)
-    assert sampling.nearest_distance(q, y, 4 * r).max() <= 1.2 * r
+    q = surface_points(shapes.boundary_surface(spec), 100_000)
+    assert geom_points.nearest_distance(q, y, 4 * r).max() <= 1.2 * r
 
 
 def test_mesh_boundary_keeps_sharp_corners(tmp_path):
@@ -271,8 +275,8 @@ def test_dragon_boundary_is_deterministic_closed_and_covered():
     np.testing.assert_array_equal(a, b)
     lo, mean, hi = spacing_stats(a, R)
     assert lo >= 1.0 - 1e-9
-    q = surface_points(sampling.boundary_surface(spec), 100_000)
-    assert sampling.nearest_distance(q, a, 4 * R).max() <= 1.2 * R  # as for the sphere and nut
+    q = surface_points(shapes.boundary_surface(spec), 100_000)
+    assert geom_points.nearest_distance(q, a, 4 * R).max() <= 1.2 * R  # as for the sphere and nut
 
 
 # ----------------------------------------------------------------------------- overlaps
@@ -284,7 +288,7 @@ def test_solid_mask_container_and_obstacle(tmp_path):
     ]
     rng = np.random.default_rng(3)
     p = rng.uniform(-0.2, 1.2, size=(5000, 3))
-    keep = sampling.solid_mask(p, walls, R)
+    keep = shapes.solid_mask(p, walls, R)
     in_box = np.all((p > 0) & (p < 1), axis=1)
     dist = np.linalg.norm(p - 0.5, axis=1)
     clear = np.abs(dist - 0.2) > 0.005  # the faceted sphere deviates from radius 0.2 by < 0.005
@@ -317,19 +321,19 @@ def test_nearest_distance_matches_brute_force():
     cutoff = 0.12
     brute = np.linalg.norm(q[:, None] - p[None], axis=2).min(axis=1)
     expected = np.where(brute < cutoff, brute, np.inf)
-    np.testing.assert_allclose(sampling.nearest_distance(q, p, cutoff), expected, rtol=1e-12)
+    np.testing.assert_allclose(geom_points.nearest_distance(q, p, cutoff), expected, rtol=1e-12)
     self_nn = np.sort(np.linalg.norm(p[:, None] - p[None], axis=2), axis=1)[:, 1]
-    got = sampling.nearest_distance(p, p, 1.0, exclude_self=True)
+    got = geom_points.nearest_distance(p, p, 1.0, exclude_self=True)
     np.testing.assert_allclose(got, self_nn, rtol=1e-12)
 
 
 def test_poisson_filter_is_maximal_and_separated():
     rng = np.random.default_rng(5)
     c = rng.uniform(0, 1, size=(20_000, 3))
-    keep = sampling.poisson_filter(c, 0.05)
+    keep = geom_points.poisson_filter(c, 0.05)
     kept = c[keep]
-    assert sampling.nearest_distance(kept, kept, 0.05, exclude_self=True).min() == np.inf  # none < 0.05
-    assert sampling.nearest_distance(c, kept, 0.05 + 1e-12).max() <= 0.05  # every candidate covered
+    assert geom_points.nearest_distance(kept, kept, 0.05, exclude_self=True).min() == np.inf  # none < 0.05
+    assert geom_points.nearest_distance(c, kept, 0.05 + 1e-12).max() <= 0.05  # every candidate covered
 
 
 # ----------------------------------------------------------------------------- cache
@@ -355,9 +359,9 @@ def test_cache_key_follows_mesh_bytes(tmp_path):
     path = tmp_path / "b.obj"
     meshes.box_mesh((0, 0, 0), (1, 1, 1)).save(path.with_suffix(".vtp"))
     spec = model.BoundarySpec("b", "mesh", mesh=path.with_suffix(".vtp"))
-    k1 = sampling.cache_key("boundary", spec, R)
+    k1 = shapes.cache_key("boundary", spec, R)
     meshes.box_mesh((0, 0, 0), (1, 1, 2)).save(path.with_suffix(".vtp"))
-    assert sampling.cache_key("boundary", spec, R) != k1
+    assert shapes.cache_key("boundary", spec, R) != k1
 
 
 def test_unwritable_cache_does_not_break_sampling(monkeypatch, tmp_path):

@@ -11,9 +11,9 @@ from pathlib import Path
 
 import pytest
 
-from ipsph import model
+from ipsph import config as model
 from ipsph.errors import ConfigError
-from ipsph.model import Method, Role, Scene, Transform
+from ipsph.config import Method, Role, Scene, Transform
 from ipsph.params import RENAMED
 from ipsph.scene import (
     PARAMS,

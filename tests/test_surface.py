@@ -13,8 +13,8 @@ import pytest
 from ipsph.io import frame_file, surface_file
 from ipsph.io.pvd import PvdSeries
 from ipsph.io.vtu import read_particles, write_particles
-from ipsph.model import SurfaceConfig
-from ipsph.surface import SurfaceFailed, read_vtp, reconstruct
+from ipsph.config import SurfaceConfig
+from ipsph.post.surface import SurfaceFailed, read_vtp, reconstruct
 
 R = 0.02
 TANK = np.array([[0.0, 1.6], [0.0, 1.2], [0.0, 0.6]])  # the default scene's tank, m
@@ -200,7 +200,7 @@ def test_a_failed_frame_is_one_warning_and_is_listed(tmp_path):
 
 
 def test_the_surface_process_reports_failed_frames_and_keeps_going(tmp_path):
-    from ipsph.surface_worker import BackgroundSurfacer
+    from ipsph.post.surface_worker import BackgroundSurfacer
 
     lines = []
     s = BackgroundSurfacer()
@@ -236,7 +236,7 @@ def test_pvd_lists_surfaces_as_part_2_and_resume_drops_the_later_ones(tmp_path):
 
 @pytest.fixture(scope="module")
 def gl():
-    from ipsph.render import gl_available
+    from ipsph.post.render import gl_available
 
     ok, reason = gl_available()
     if not ok:
@@ -246,8 +246,8 @@ def gl():
 def test_surface_renders_show_the_mesh_with_the_walls(gl, dam_break, tmp_path):
     import imageio.v3 as iio
 
-    from ipsph.model import RenderConfig
-    from ipsph.render import FrameRenderer, read_surface, render_output
+    from ipsph.config import RenderConfig
+    from ipsph.post.render import FrameRenderer, read_surface, render_output
     from ipsph.io.provenance import read_run_json
 
     small = {"width": 320, "height": 180}
@@ -291,7 +291,7 @@ def test_surface_mode_renders_during_a_run(gl, tmp_path):
 
 
 def test_bench_surface_sizes_reports_seconds_and_cpu():
-    from ipsph.benchmark.surface_cost import sizes_table, surface_seconds
+    from ipsph.bench.surface_cost import sizes_table, surface_seconds
 
     row = surface_seconds(3000, threads=1, repeats=1, log=lambda m: None)
     assert row["particles"] == 14**3 and row["triangles"] > 0

@@ -27,7 +27,7 @@ pytest.importorskip("distributed")  # the test extra installs it: a missing one 
 
 import ipsph
 from ipsph import cli
-from ipsph.ensemble import engine, member, spec
+from ipsph.sweeps import engine, member, spec
 from ipsph.io import RUN_JSON, RUN_PVD, vtu
 from ipsph.io.pvd import PvdSeries
 from ipsph.scene import default_scene_path

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from ipsph import cli
-from ipsph.ensemble import engine, spec
+from ipsph.sweeps import engine, spec
 from ipsph.scene import default_scene_path, load_scene
 
 
@@ -121,7 +121,7 @@ def test_missing_scene_names_the_sweep_file(tmp_path, capsys):
 
 
 def test_local_layout_from_the_machine(monkeypatch):
-    from ipsph.ensemble import cluster
+    from ipsph.sweeps import cluster
 
     monkeypatch.setattr(cluster, "usable_cores", lambda: 8)
     assert cluster.local_layout(None, None) == (8, 1)
@@ -134,11 +134,11 @@ def test_local_layout_from_the_machine(monkeypatch):
 
 
 def test_docs_summary_table_is_generated_from_the_columns():
-    from ipsph.ensemble import records
+    from ipsph.sweeps import records
 
     page = (Path(__file__).resolve().parents[1] / "docs" / "sweeps.md").read_text(encoding="utf-8")
     table = page.split("<!-- summary-columns: generated -->\n", 1)[1].split("<!-- /summary-columns -->", 1)[0]
-    assert table == records.summary_columns_markdown(), "regenerate it with `python -m ipsph.ensemble`"
+    assert table == records.summary_columns_markdown(), "regenerate it with `python -m ipsph.sweeps`"
 
 
 def test_bench_sweep_table_leaves_loaded_repeats_out():

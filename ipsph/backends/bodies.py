@@ -3,7 +3,7 @@
 Each body is a plain function of i (and arrays and scalars): it gathers what it needs of i's
 neighbours into a scratch block `buf` the launcher hands it, evaluates the kernel over that
 contiguous block, and writes index i of its outputs only. Bodies allocate nothing, read no
-globals and call only other bodies and the kernel formulas (`ipsph.kernels`), so the CPU
+globals and call only other bodies and the kernel formulas (`ipsph.backends.kernels`), so the CPU
 launcher (`cpu_passes`: `prange` over blocks of particles) inlines them today and a CUDA
 launcher compiles the same functions as device functions (`cuda_passes`: `buf` a thread-local
 array). Scalar maths goes through `math`, not numpy: `np.sqrt` of a scalar does not compile for
@@ -23,7 +23,7 @@ import math
 
 from numba import njit
 
-from ..kernels import FASTMATH, grad_w_factor, w
+from .kernels import FASTMATH, grad_w_factor, w
 
 FAST = FASTMATH  # the one fastmath set (kernels.FASTMATH)
 

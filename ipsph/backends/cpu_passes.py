@@ -17,7 +17,7 @@ import os
 import numpy as np
 from numba import njit, prange
 
-from .. import kernels
+from . import kernels
 from . import bodies
 from .bodies import (
     DENSITY_ROWS,
@@ -38,7 +38,7 @@ from .bodies import (
     wall_rate_at,
 )
 from .viscous_bodies import cg_precondition_at, viscous_apply_at, viscous_setup_at
-from ..kernels import w
+from .kernels import w
 
 CHUNKS = 64  # blocks of particles per pass, each with its own scratch buffer
 

@@ -24,7 +24,7 @@ import math
 
 import numpy as np
 
-from .. import kernels
+from . import kernels
 from . import bodies, viscous_bodies
 from ._cuda import SIMULATOR, cuda, device_function
 from .bodies import (

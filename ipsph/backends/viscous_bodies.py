@@ -7,7 +7,7 @@ import math
 
 from numba import njit
 
-from ..kernels import grad_w_factor
+from .kernels import grad_w_factor
 from .bodies import C0, C1, C2, C3, DX, DY, DZ, FAST, _gather_diff, _gather_xf
 
 

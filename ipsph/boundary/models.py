@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..model import BoundarySpec, Role
+from ..config import BoundarySpec, Role
 from ..params import BOUNDARY_MODELS, spacing
 from .particles import Boundary
 from .sampling import boundary_positions

@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from ..kernels import w
+from ..backends.kernels import w
 from ..neighbours import Grid, cell_ids, counting_sort, gather_neighbours
 
 

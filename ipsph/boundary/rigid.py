@@ -1,4 +1,4 @@
-"""Moving walls: kinematic walls (prescribed motion, ipsph.motion) and dynamic rigid bodies two-way
+"""Moving walls: kinematic walls (prescribed motion, ipsph.boundary.motion) and dynamic rigid bodies two-way
 coupled to the fluid (docs/method.md section 9).
 
 `WallDriver` owns every moving [[boundary]] of a scene. The methods call it at two points of a
@@ -29,9 +29,9 @@ import math
 import numpy as np
 from numba import njit
 
-from ..kernels import grad_w_factor
-from ..model import BoundarySpec, Scene
-from ..motion import Motion, quat_axis_angle, quat_matrix, quat_mul
+from ..backends.kernels import grad_w_factor
+from ..config import BoundarySpec, Scene
+from .motion import Motion, quat_axis_angle, quat_matrix, quat_mul
 
 # Contact when two walls' surfaces are closer than this many d: their particles are then closer than
 # the sum of their layers' depths behind the surfaces (Boundary.depth) plus this gap. A dense body
@@ -68,7 +68,7 @@ def wall_forces(x, xb, mb, groups, nb, cb, coeff, mf, h, fb):
 def mass_properties(spec: BoundarySpec, density: float) -> tuple[float, np.ndarray, np.ndarray]:
     """(mass, centre of mass, inertia tensor about it) of the closed surface at `density`:
     the divergence theorem over the triangles' tetrahedra from the origin."""
-    from ..sampling import boundary_surface
+    from ..geometry.shapes import boundary_surface
 
     mesh = boundary_surface(spec).triangulate()
     pts = np.asarray(mesh.points, dtype=np.float64)

@@ -17,9 +17,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import meshes, model
-from ..point_kernels import nearest_distance, poisson_filter
-from ..sampling import cached_samples, check_radius, mesh_path, prepared_mesh, rigid_part, scaled_box, shape_of
+from ..geometry import meshes
+from .. import config as model
+from ..geometry.points import nearest_distance, poisson_filter
+from ..geometry.shapes import cached_samples, check_radius, mesh_path, prepared_mesh, rigid_part, scaled_box, shape_of
 
 BOUNDARY_SPACING_FACTOR = 1.5  # box-grid spacing <= 1.5 r (method.md section 1)
 # Fluid starts at least this many spacings d from a rigid body's particles (other walls: 1 d): where

@@ -12,7 +12,7 @@ Layout of an output folder OUT (fixed; the runner fills it, `ipsph render` reads
     OUT/bodies.csv                one row per moving wall per step (io.bodies.BODIES_COLUMNS)
     OUT/stats.csv                 one row per step
     OUT/run.json                  provenance
-    OUT/paraview_view.py          a ParaView script that opens the run with its settings (ipsph.paraview)
+    OUT/paraview_view.py          a ParaView script that opens the run with its settings (ipsph.post.paraview)
     OUT/renders/frame_000000.png, OUT/plots/*.png, OUT/video.mp4|gif
 
 Every file that a reader may open while the run goes on is replaced atomically

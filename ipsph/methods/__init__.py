@@ -4,7 +4,7 @@ Each class names itself (`name`, one of `ipsph.params.METHOD_NAMES`) and its tim
 (`phases`, keys of `ipsph.params.PHASES`); this registry is built from the classes.
 """
 
-from ..model import Method as MethodName
+from ..config import Method as MethodName
 from ..params import PHASES
 from .dfsph import DFSPH
 from .ipsph import IPSPH

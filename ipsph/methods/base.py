@@ -15,8 +15,8 @@ from types import SimpleNamespace
 
 from ..backends import Backend
 from ..boundary import Boundary
-from ..model import Scene
-from ..particles import ParticleState
+from ..config import Scene
+from .state import ParticleState
 from .viscosity import WALL_FACTOR, ViscosityScratch, viscous_solve
 
 PAIR_CACHE_BYTES = 24  # per neighbour-list slot: mf grad W_ij, three float64

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 from ..backends import Backend, Densities
 from ..backends.bodies import MIN_NEIGHBOURS_WARM
-from ..model import DFSPHConfig, DivergenceConfig
+from ..config import DFSPHConfig, DivergenceConfig
 from .base import Fluid
 
 

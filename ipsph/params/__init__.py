@@ -1,7 +1,7 @@
 """Every declared fact the rest of ipsph is generated from.
 
 * `PARAMS`: every scene parameter, once: key path, type, default, unit, allowed values, one line
-  of doc. The model's dataclass defaults (`ipsph.model`), scene validation and `--set`
+  of doc. The model's dataclass defaults (`ipsph.config`), scene validation and `--set`
   (`ipsph.scene`), `--help`, the CLI's choices and docs/scene-reference.md are generated from it.
 * `RENAMED`: keys that moved, old path -> new path; reading an old key is a one-line error that
   names the new one.
@@ -12,7 +12,7 @@ The declarations, by topic: facts.py (the facts that are not keys), schema.py (`
 the keys: run_keys.py ([simulation], [time_step], [solver.*]), output_keys.py ([output],
 [render], [surface]), body_keys.py ([[fluid]], [[boundary]]), flow_keys.py ([[emitter]],
 [[sink]], [domain]). Adding a scene key: one `_P(...)` entry in its table's file (and, for
-[[fluid]]/[[boundary]]/[[emitter]] keys, the field it lands in, in `ipsph.model`), then
+[[fluid]]/[[boundary]]/[[emitter]] keys, the field it lands in, in `ipsph.config`), then
 `python -m ipsph.scene > docs/scene-reference.md`.
 
 This module imports nothing from ipsph, so everything may import it.

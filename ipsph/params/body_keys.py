@@ -69,7 +69,7 @@ KEYS: tuple[Param, ...] = (
         "mesh",
     ),
     *_transform("boundary"),
-    # -- [[boundary]] motion and rigid bodies (ipsph/motion.py, ipsph/rigid.py; method.md section 9) ----
+    # -- [[boundary]] motion and rigid bodies (ipsph/boundary/motion.py, ipsph/rigid.py; method.md section 9) ----
     _P(
         "boundary.motion.type",
         "choice",

@@ -1,4 +1,4 @@
-"""The [[emitter]], [[sink]] and [domain] keys: fluid entering and leaving (ipsph.emitters)."""
+"""The [[emitter]], [[sink]] and [domain] keys: fluid entering and leaving (ipsph.flow)."""
 
 from __future__ import annotations
 

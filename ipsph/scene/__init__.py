@@ -1,4 +1,4 @@
-"""Scene files -> `ipsph.model.Scene`: the TOML format, strictly validated.
+"""Scene files -> `ipsph.config.Scene`: the TOML format, strictly validated.
 
 Every parameter is declared once, in `ipsph.params.PARAMS` (key path, type, default, unit,
 allowed values, one-line doc); this package is generated from it:
@@ -10,7 +10,7 @@ allowed values, one-line doc); this package is generated from it:
     reference.py   docs/scene-reference.md (`python -m ipsph.scene`) and `ipsph run --help`'s key list
     text.py        how values and ranges are written in messages
 
-Sources: `.toml` and `.json` (SPlisHSPlasH scenes, `ipsph.splishsplash`, which converts them to
+Sources: `.toml` and `.json` (SPlisHSPlasH scenes, `ipsph.scene.splishsplash`, which converts them to
 the same dict form first, so overrides and validation are shared). Paths: mesh files resolve
 relative to the scene file's folder; the output folder resolves relative to the current working
 directory when the run starts (it is stored as written).
@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Iterable
 
 from ..errors import ConfigError
-from ..model import Scene, SurfaceConfig
+from ..config import Scene, SurfaceConfig
 from ..params import OUTPUT_FIELDS, PARAM_BY_PATH, PARAMS, RENDER_VIEWS, Param
 from .overrides import apply_overrides
 from .reference import key_help, reference_markdown
@@ -49,14 +49,14 @@ __all__ = [
 
 
 def default_scene_path() -> Path:
-    """The built-in dam break (`ipsph/scenes/default.toml`)."""
-    return Path(__file__).resolve().parents[1] / "scenes" / "default.toml"
+    """The built-in dam break (`ipsph/scene/default.toml`)."""
+    return Path(__file__).resolve().with_name("default.toml")
 
 
 def load_scene(path: str | Path, overrides: Iterable[str] = ()) -> Scene:
     """Read a scene file (.toml, or .json for SPlisHSPlasH), apply `--set` overrides, validate.
 
-    JSON scenes are converted to the TOML dict form first (`ipsph.splishsplash.scene_dict`), so
+    JSON scenes are converted to the TOML dict form first (`ipsph.scene.splishsplash.scene_dict`), so
     overrides use the same key paths for both (`fluid.0.velocity=[1,0,0]`); the importer's
     warnings are kept in `Scene.warnings`.
     """
@@ -75,7 +75,7 @@ def load_scene(path: str | Path, overrides: Iterable[str] = ()) -> Scene:
     if suffix == ".toml":
         data = _read_toml(resolved, where)
     else:
-        from .. import splishsplash
+        from . import splishsplash
 
         data, warnings = splishsplash.scene_dict(resolved, where=where)
     data.setdefault("name", resolved.stem)

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from ..model import Keyframe, MotionSpec, Role
+from ..config import Keyframe, MotionSpec, Role
 from ..params import PARAM_BY_PATH
 from .text import _fmt, _show
 
@@ -133,7 +133,7 @@ def boundary_extras(ctx, prefix: str, vals: dict, role: Role, shape: str, mesh) 
                 'a dynamic body must be an obstacle (the fluid flows around it): set role = "obstacle"',
             )
         if shape == "mesh":
-            from ..meshes import check_closed, load_mesh
+            from ..geometry.meshes import check_closed, load_mesh
 
             open_edges = check_closed(load_mesh(mesh))
             if open_edges:

@@ -5,7 +5,7 @@ module adds the rules that tie keys together: a box nozzle has width and height,
 radius; the direction is not zero and the height axis not parallel to it; end_time after
 start_time; a nozzle holds at least one particle; both domain corners or none. Each failure is
 one line naming the key. Whether a nozzle lies inside a container needs the walls' geometry and
-is checked before allocation by `ipsph.emitters.check_placement` (preflight).
+is checked before allocation by `ipsph.flow.check_placement` (preflight).
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from ..model import DomainConfig, EmitterSpec, SinkSpec
+from ..config import DomainConfig, EmitterSpec, SinkSpec
 from ..params import PARAM_BY_PATH, spacing
 from .text import _fmt, _fmt_vec
 

@@ -27,7 +27,7 @@ def key_help() -> str:
 
 def reference_markdown() -> str:
     """docs/scene-reference.md, generated from PARAMS (and the importer's notes)."""
-    from ..splishsplash import IMPORT_NOTES
+    from .splishsplash import IMPORT_NOTES
 
     out = [
         "# Scene file reference",
@@ -36,7 +36,7 @@ def reference_markdown() -> str:
         "ipsph/params/. Do not edit by hand: run `python -m ipsph.scene > "
         "docs/scene-reference.md`. -->",
         "",
-        "A scene is a TOML file (start from `ipsph/scenes/default.toml`, the dam break) or a "
+        "A scene is a TOML file (start from `ipsph/scene/default.toml`, the dam break) or a "
         "SPlisHSPlasH JSON scene (see the last section). Units are SI, y is up. Every key is "
         "optional except the shape of each body; a key left out takes the default below.",
         "",

@@ -6,7 +6,7 @@ from enum import Enum
 from pathlib import Path
 from typing import Any
 
-from ..model import Scene, Transform
+from ..config import Scene, Transform
 from ..params import PARAMS
 from .validate import ENTITIES, set_path
 

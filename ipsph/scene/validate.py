@@ -1,4 +1,4 @@
-"""Reading and validating a scene dict (the TOML layout) into `ipsph.model.Scene`.
+"""Reading and validating a scene dict (the TOML layout) into `ipsph.config.Scene`.
 
 Rules (house-style 6 and 7): unknown keys are refused with a "did you mean"; a renamed key names
 its new path; a wrong type or an out-of-range value is refused naming the full key path
@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import ConfigError, read_text
-from ..model import (
+from ..config import (
     BoundarySpec,
     DomainConfig,
     FluidSpec,
@@ -150,7 +150,7 @@ def _build_scene(data: dict, base_dir: Path, name: str | None, source: Path | No
     except ConfigError:
         # A radius far too small also breaks the auto dt_max; its size is the error to report
         # (the runner checks the count again against --max-particles before sampling).
-        from ..preflight import check_fluid_count
+        from ..sampling.budget import check_fluid_count
 
         check_fluid_count(fluids, r, None)
         raise

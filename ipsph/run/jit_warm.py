@@ -1,0 +1,126 @@
+"""A cold first run compiles on both cores: a helper process compiles the method's kernels from the end.
+
+Numba compiles one kernel at a time, on one core. The first run of a method (empty Numba cache)
+spends almost all of its first minute there: about 20 kernels, sampling's first, then the step's.
+When the cache lacks a kernel of the method that is about to run, `start` launches
+`python -m ipsph.run.jit_warm METHOD`: it compiles the same kernels, with the signatures the run will
+use, in REVERSE order of first use, and writes each to the Numba cache. The run compiles from the
+front as usual; whenever it reaches a kernel the helper has already cached, Numba loads it in
+milliseconds. The two meet in the middle, so on an otherwise idle 2-core machine the compiling
+takes about half as long. A warm cache starts no helper (a few `stat` calls decide).
+
+The signatures are recorded, per method and in first-compile order, in `jit_signatures.json`
+beside this file: `python -m scripts.jit_record` regenerates it (a cold run of the coarse default
+scene per method, in a subprocess with an empty cache); tests/test_jit_warm.py fails when a
+kernel or signature the methods use is missing from it.
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+SIGNATURES_FILE = Path(__file__).with_name("jit_signatures.json")
+METHODS = ("ipsph", "pf", "dfsph")
+
+
+def _types_namespace() -> dict:
+    from numba import types
+
+    ns = {k: v for k, v in vars(types).items() if not k.startswith("_")}
+    ns["bool"] = types.boolean
+    return ns
+
+
+def _parse(sig: list[str]) -> tuple:
+    ns = _types_namespace()
+    return tuple(eval(s, {"__builtins__": {}}, ns) for s in sig)  # noqa: S307 - our own file, numba type reprs
+
+
+def load_signatures() -> dict[str, list[tuple[str, str, list[str]]]]:
+    try:
+        return json.loads(SIGNATURES_FILE.read_text())["methods"]
+    except (OSError, ValueError, KeyError):
+        return {}
+
+
+def _dispatcher(module: str, qualname: str):
+    obj = importlib.import_module(module)
+    for part in qualname.split("."):
+        obj = getattr(obj, part)
+    return obj
+
+
+def missing_from_cache(method: str) -> int:
+    """How many of `method`'s kernels have no Numba cache index yet (0: warm; checks files only)."""
+    n = 0
+    for module, qualname, _ in load_signatures().get(method, []):
+        try:
+            index = Path(_dispatcher(module, qualname)._cache._cache_file._index_path)
+        except Exception:  # not a cached dispatcher any more: the file is stale, say cold
+            n += 1
+            continue
+        n += not index.is_file()
+    return n
+
+
+def start(method: str):
+    """Start the helper when `method`'s kernels are not all cached; returns the Popen (or None)."""
+    if os.environ.get("IPSPH_NO_JIT_HELPER") or not load_signatures().get(method):
+        return None
+    if missing_from_cache(method) == 0:
+        return None
+    # its own session: a terminal's Ctrl-C goes to the run, which stops the helper (`stop`)
+    return subprocess.Popen(
+        [sys.executable, "-m", "ipsph.run.jit_warm", method],
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
+    )
+
+
+def stop(proc) -> None:
+    """End the helper (its cache writes are atomic: a half-written kernel is never seen)."""
+    if proc is None or proc.poll() is not None:
+        return
+    proc.send_signal(signal.SIGTERM)
+    try:
+        proc.wait(5.0)
+    except subprocess.TimeoutExpired:  # pragma: no cover
+        proc.kill()
+        proc.wait()
+
+
+def compile_backwards(method: str, limit: int | None = None) -> list[str]:
+    """Compile (or load from the cache) `method`'s kernels, last-used first; returns their names."""
+    done = []
+    entries = list(reversed(load_signatures().get(method, [])))
+    for module, qualname, sig in entries[:limit]:
+        try:
+            _dispatcher(module, qualname).compile(_parse(sig))
+        except Exception:  # a stale entry costs only its own kernel: the run compiles it itself
+            continue
+        done.append(f"{module}.{qualname}")
+    return done
+
+
+def main(argv: list[str]) -> int:
+    if len(argv) in (1, 2) and argv[0] in METHODS:
+        try:
+            os.nice(5)  # the run itself comes first
+        except OSError:  # pragma: no cover
+            pass
+        compile_backwards(argv[0], int(argv[1]) if len(argv) == 2 else None)
+        return 0
+    print("usage: python -m ipsph.run.jit_warm METHOD [LIMIT]", file=sys.stderr)
+    return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
