@@ -148,6 +148,28 @@ def test_zero_volume_mesh_refused(tmp_path, capsys):
     assert "flat.obj" in line and "zero volume" in line, line
 
 
+@pytest.mark.parametrize("index", [99, 0])  # past the end; 0 (OBJ counts from 1) crashed VTK
+def test_obj_face_naming_a_missing_vertex_names_the_line(tmp_path, capsys, index):
+    pts, faces = cube()
+    faces[5] = (faces[5][0], faces[5][1], index - 1)  # write_obj adds 1
+    write_obj(tmp_path / "holey.obj", pts, faces)
+    s = scene_file(tmp_path, TANK.format(fluid='mesh = "holey.obj"'))
+    line = assert_refused(capsys, tmp_path / "out", s)
+    assert "holey.obj" in line and "line 14" in line and f"names vertex {index}" in line, line
+
+
+@pytest.mark.parametrize("bad", ["nan", "inf", "-inf"])
+def test_mesh_with_a_vertex_that_is_not_a_number_refused(tmp_path, capsys, bad):
+    pts, faces = cube()
+    write_obj(tmp_path / "bad.obj", pts, faces)
+    text = (tmp_path / "bad.obj").read_text().splitlines()
+    text[2] = f"v 0.1 {bad} 0.1"
+    (tmp_path / "bad.obj").write_text("\n".join(text) + "\n")
+    s = scene_file(tmp_path, TANK.format(fluid='mesh = "bad.obj"'))
+    line = assert_refused(capsys, tmp_path / "out", s)
+    assert "bad.obj" in line and "not a finite number" in line and "line 3" in line, line
+
+
 def test_inverted_mesh_is_flipped_and_runs(tmp_path, capsys):
     pts, faces = cube()
     write_obj(tmp_path / "inside_out.obj", pts, [t[::-1] for t in faces])
