@@ -170,6 +170,50 @@ def test_mesh_with_a_vertex_that_is_not_a_number_refused(tmp_path, capsys, bad):
     assert "bad.obj" in line and "not a finite number" in line and "line 3" in line, line
 
 
+OBSTACLE = """
+[[boundary]]
+name = "rock"
+role = "obstacle"
+mesh = "rock.obj"
+"""
+
+
+def test_open_obstacle_mesh_refused_naming_where(tmp_path, capsys):
+    pts, faces = cube(0.5, 0.7)
+    write_obj(tmp_path / "rock.obj", pts, faces[:-2])  # the x = 0.7 face missing: 4 open edges
+    s = scene_file(tmp_path, TANK.format(fluid=BOX_FLUID) + OBSTACLE)
+    line = assert_refused(capsys, tmp_path / "out", s)
+    assert "boundary[1] 'rock'" in line and "obstacle" in line and "4 open edges" in line, line
+    assert re.search(r"one at \(0\.7, ", line) and "allow_open_mesh" in line, line
+
+
+def test_open_obstacle_mesh_runs_as_a_thin_shell_when_allowed(tmp_path):
+    from ipsph.run.preflight import check_geometry
+    from ipsph.scene import load_scene
+
+    pts, faces = cube(0.5, 0.7)
+    write_obj(tmp_path / "rock.obj", pts, faces[:-2])
+    s = scene_file(tmp_path, TANK.format(fluid=BOX_FLUID) + OBSTACLE + "allow_open_mesh = true\n")
+    check_geometry(load_scene(s))  # passes the check that refuses it without the key
+
+
+@pytest.mark.parametrize(
+    "wall, says",
+    [
+        ('box = { min = [0.5, 0.5, 0.5], max = [0.7, 0.7, 0.7] }\nrole = "obstacle"', "mesh obstacles only"),
+        ('mesh = "rock.obj"\nrole = "container"', "container's mesh may be open already"),
+        ('mesh = "rock.obj"\nrole = "obstacle"\ndensity = 500.0', "dynamic body needs a closed surface"),
+    ],
+)
+def test_allow_open_mesh_applies_to_mesh_obstacles_only(tmp_path, capsys, wall, says):
+    pts, faces = cube(0.5, 0.7)
+    write_obj(tmp_path / "rock.obj", pts, faces)
+    extra = f'[[boundary]]\nname = "rock"\n{wall}\nallow_open_mesh = true\n'
+    s = scene_file(tmp_path, TANK.format(fluid=BOX_FLUID) + extra)
+    line = assert_refused(capsys, tmp_path / "out", s)
+    assert "boundary[1].allow_open_mesh" in line and says in line, line
+
+
 def test_inverted_mesh_is_flipped_and_runs(tmp_path, capsys):
     pts, faces = cube()
     write_obj(tmp_path / "inside_out.obj", pts, [t[::-1] for t in faces])

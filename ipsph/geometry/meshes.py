@@ -269,15 +269,38 @@ def edge_counts(mesh) -> tuple[int, int, int]:
     zero exactly when the surface is a closed oriented 2-cycle, the condition under which the
     winding number is an integer (0 or ±1 for non-overlapping parts) everywhere off the surface.
     """
+    _, cnt, balance = _edge_table(mesh)
+    return int(np.count_nonzero(cnt % 2)), int(np.count_nonzero(cnt > 2)), int(np.count_nonzero(balance))
+
+
+def _edge_table(mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(edges (k, 2) as sorted vertex pairs, uses per edge, sum of the directed uses' signs)."""
     _, faces = mesh_arrays(mesh)
     if len(faces) == 0:
-        return 0, 0, 0
+        return np.empty((0, 2), np.int64), np.empty(0, np.int64), np.empty(0)
     e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
     sign = np.where(e[:, 0] < e[:, 1], 1, -1)
     key = np.sort(e, axis=1)
-    _, inv, cnt = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    edges, inv, cnt = np.unique(key, axis=0, return_inverse=True, return_counts=True)
     balance = np.bincount(inv.ravel(), weights=sign, minlength=len(cnt))
-    return int(np.count_nonzero(cnt % 2)), int(np.count_nonzero(cnt > 2)), int(np.count_nonzero(balance))
+    return edges, cnt, balance
+
+
+def fmt_point(p) -> str:
+    return "(" + ", ".join(f"{float(c):.4g}" for c in p) + ")"
+
+
+def unpaired_edge_at(mesh) -> tuple[float, float, float] | None:
+    """The midpoint of one edge where the surface is not closed and oriented (an open edge first),
+    to point a user at the hole; None when the surface is closed."""
+    edges, cnt, balance = _edge_table(mesh)
+    bad = np.flatnonzero(cnt % 2)
+    if len(bad) == 0:
+        bad = np.flatnonzero(balance)
+    if len(bad) == 0:
+        return None
+    pts = np.asarray(mesh.points, dtype=np.float64)
+    return tuple(float(v) for v in 0.5 * (pts[edges[bad[0], 0]] + pts[edges[bad[0], 1]]))
 
 
 def check_closed(mesh) -> int:
@@ -308,6 +331,7 @@ class MeshReport:
     flipped: bool  # triangles were reversed (the file's normals pointed inward)
     bounds: tuple[float, float, float, float, float, float]
     notes: tuple[str, ...] = ()
+    open_at: tuple[float, float, float] | None = None  # one unpaired edge's midpoint (None: closed)
 
     @property
     def closed(self) -> bool:
@@ -346,8 +370,8 @@ def prepare_mesh(
             notes.append(f"mesh {label}: triangle orientation made consistent")
     if n_unpaired and need_closed and not allow_open:
         raise MeshError(
-            f"mesh {label}: not closed ({n_open} open edges, {n_unpaired} unpaired edges); "
-            "repair it, or allow an open mesh explicitly (allow_open_mesh = true)"
+            f"mesh {label}: not closed ({n_open} open edges, {n_unpaired} unpaired edges, one at "
+            f"{fmt_point(unpaired_edge_at(mesh))}); repair it, or allow an open mesh explicitly (allow_open_mesh = true)"
         )
     vol = signed_volume(mesh)
     b = mesh.bounds
@@ -378,6 +402,7 @@ def prepare_mesh(
         flipped=flipped,
         bounds=tuple(float(v) for v in b),
         notes=tuple(notes),
+        open_at=unpaired_edge_at(mesh) if n_unpaired else None,
     )
     return mesh, report
 

@@ -69,6 +69,17 @@ KEYS: tuple[Param, ...] = (
         "mesh",
     ),
     *_transform("boundary"),
+    _P(
+        "boundary.allow_open_mesh",
+        "bool",
+        False,
+        "",
+        "Mesh obstacle only: use a mesh that is not closed as a thin shell (one layer of wall "
+        "particles on its surface, its inside where the winding number exceeds 1/2) instead of "
+        "refusing it. An obstacle's inside decides where fluid may start, so an open one is refused "
+        "by default; a container's mesh may be open anyway, a dynamic body's never.",
+        "allow_open_mesh",
+    ),
     # -- [[boundary]] motion and rigid bodies (ipsph/boundary/motion.py, ipsph/rigid.py; method.md section 9) ----
     _P(
         "boundary.motion.type",

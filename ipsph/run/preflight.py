@@ -44,7 +44,9 @@ def check_size(scene: Scene, max_particles: int | None) -> int:
 
 
 def check_geometry(scene: Scene) -> None:
-    """Refuse a particle radius too large for a fluid body: fewer than 2 particles across it (exit 2)."""
+    """Refuse a particle radius too large for a fluid body: fewer than 2 particles across it, and a
+    wall mesh whose inside is undefined (`check_walls`) (exit 2)."""
+    check_walls(scene)
     d = scene.spacing
     for i, spec in enumerate(scene.fluids):
         ext = _fluid_extent(spec)
@@ -71,3 +73,32 @@ def check_backend(scene: Scene) -> None:
         why = unavailable(scene.device)
         if why is not None:
             raise ConfigError(f'simulation.backend = "cuda": {why}')
+
+
+def check_walls(scene: Scene) -> None:
+    """Read every wall mesh now, before sampling (an unreadable one is refused here), and refuse an
+    obstacle or dynamic body whose mesh is not closed: its inside decides where fluid may start and
+    where its particles lie, and an open surface has none. Containers may be open (the fluid lies
+    inside the winding number's half); an obstacle with allow_open_mesh = true is a thin shell."""
+    from ..config import Role
+    from ..errors import MeshError
+    from ..geometry.meshes import fmt_point
+    from ..geometry.shapes import mesh_report
+
+    for i, spec in enumerate(scene.boundaries):
+        if spec.shape != "mesh":
+            continue
+        report = mesh_report(spec)
+        if report.closed or spec.role == Role.CONTAINER or (spec.allow_open_mesh and not spec.dynamic):
+            continue
+        what = "a dynamic body" if spec.dynamic else "an obstacle"
+        fix = (
+            ""
+            if spec.dynamic
+            else f", or set allow_open_mesh = true (--set boundary.{i}.allow_open_mesh=true) for a thin shell"
+        )
+        raise MeshError(
+            f"boundary[{i}] '{spec.name}' is {what}, but its mesh {spec.mesh} has no inside: not closed and "
+            f"consistently oriented ({report.open_edges} open edges, {report.unpaired_edges} unpaired, one at "
+            f"{fmt_point(report.open_at)}); repair the mesh{fix}"
+        )

@@ -115,6 +115,13 @@ def boundary_extras(ctx, prefix: str, vals: dict, role: Role, shape: str, mesh) 
         raise ctx.fail(f"{mp}.keyframes", f"needs at least 2 keyframes, got {len(motion.keyframes)}")
     density, mass = g("density"), g("mass")
     dynamic = density is not None or mass is not None
+    if g("allow_open_mesh") and (shape != "mesh" or role != Role.OBSTACLE or dynamic):
+        why = (
+            "a dynamic body needs a closed surface" if dynamic and shape == "mesh" else "applies to mesh obstacles only"
+        )
+        if role == Role.CONTAINER and shape == "mesh":
+            why += " (a container's mesh may be open already)"
+        raise ctx.fail(f"{prefix}.allow_open_mesh", why)
     for key in ("velocity", "angular_velocity"):
         if f"boundary.{key}" in vals and not dynamic:
             raise ctx.fail(f"{prefix}.{key}", "is a dynamic body's initial velocity: give density or mass too")
@@ -133,14 +140,16 @@ def boundary_extras(ctx, prefix: str, vals: dict, role: Role, shape: str, mesh) 
                 'a dynamic body must be an obstacle (the fluid flows around it): set role = "obstacle"',
             )
         if shape == "mesh":
-            from ..geometry.meshes import check_closed, load_mesh
+            from ..geometry.meshes import check_closed, fmt_point, load_mesh, unpaired_edge_at
 
-            open_edges = check_closed(load_mesh(mesh))
+            surface = load_mesh(mesh)
+            open_edges = check_closed(surface)
             if open_edges:
                 raise ctx.fail(
                     f"{prefix}.mesh",
-                    f"a dynamic body needs a closed surface (its mass and "
-                    f"inertia are its volume's): {open_edges} open or unpaired edges in {mesh}",
+                    f"a dynamic body needs a closed surface (its mass and inertia are its volume's): "
+                    f"{open_edges} open or unpaired edges in {mesh}, one at {fmt_point(unpaired_edge_at(surface))} "
+                    f"(the file's coordinates); repair the mesh",
                 )
     return {
         "motion": motion,
@@ -148,4 +157,5 @@ def boundary_extras(ctx, prefix: str, vals: dict, role: Role, shape: str, mesh) 
         "mass": mass,
         "velocity": g("velocity"),
         "angular_velocity": g("angular_velocity"),
+        "allow_open_mesh": g("allow_open_mesh"),
     }

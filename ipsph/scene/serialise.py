@@ -87,7 +87,7 @@ def _entity_to_dict(kind: str, e) -> dict:
         d["scale"] = _plain(tf.scale)
         d["rotate_axis"] = _plain(tf.rotate_axis)
         d["rotate_deg"] = tf.rotate_deg
-        if kind == "fluid":
+        if kind == "fluid" or e.allow_open_mesh:  # a wall's only when set (an obstacle's)
             d["allow_open_mesh"] = e.allow_open_mesh
     if kind == "fluid":
         d["velocity"] = _plain(e.velocity)
