@@ -214,6 +214,15 @@ def test_allow_open_mesh_applies_to_mesh_obstacles_only(tmp_path, capsys, wall, 
     assert "boundary[1].allow_open_mesh" in line and says in line, line
 
 
+def test_body_through_its_containers_wall_refused(tmp_path, capsys):
+    crate = '[[boundary]]\nname = "crate"\nrole = "obstacle"\ndensity = 500.0\n'
+    crate += "box = { min = [0.7, 0.4, 0.3], max = [0.9, 0.6, 0.5] }\n"  # 0.1 m past the tank's x = 0.8
+    s = scene_file(tmp_path, TANK.format(fluid=BOX_FLUID) + crate)
+    line = assert_refused(capsys, tmp_path / "out", s)
+    assert "boundary[1] 'crate'" in line and "wall of boundary[0] 'tank'" in line, line
+    assert re.search(r"up to 0\.0[5-9]\d* m deep \(near \(0\.8", line), line
+
+
 def test_inverted_mesh_is_flipped_and_runs(tmp_path, capsys):
     pts, faces = cube()
     write_obj(tmp_path / "inside_out.obj", pts, [t[::-1] for t in faces])

@@ -16,6 +16,7 @@ import numpy as np
 
 from ..boundary import model_of
 from ..errors import ConfigError
+from ..geometry.meshes import fmt_point
 from ..config import Scene
 
 
@@ -42,9 +43,10 @@ def sample(scene: Scene) -> SampledScene:
 
 def check_sampled(scene: Scene, s: SampledScene) -> None:
     """Refuse a scene whose particles cannot run (ConfigError, exit 2): rigid bodies that overlap
-    each other, no fluid at all, or all of it outside every container or inside walls (a scene
-    with emitters may start empty)."""
+    each other or reach through a wall, no fluid at all, or all of it outside every container or
+    inside walls (a scene with emitters may start empty)."""
     _check_bodies_apart(scene, s)
+    _check_bodies_clear_of_walls(scene, s)
     if len(s.fluid_x) or scene.emitters:
         return
     if s.fluid_sampled:
@@ -84,6 +86,39 @@ def _check_bodies_apart(scene: Scene, s: SampledScene) -> None:
                 raise ConfigError(
                     f"boundary[{k}] '{a.name}' and boundary[{j}] '{o.name}' are rigid bodies that overlap at "
                     f"t = 0 ({n} of '{a.name}''s wall particles lie inside '{o.name}'): move them apart"
+                )
+
+
+def _check_bodies_clear_of_walls(scene: Scene, s: SampledScene) -> None:
+    """A rigid body must not start through a wall (its container's, an obstacle's, a moving wall's):
+    the wall's particles inside the body would fling it at t = 0. Measured by the wall particles
+    that lie inside the body's surface, and how deep the deepest lies."""
+    bodies = [k for k, b in enumerate(scene.boundaries) if b.dynamic]
+    if not bodies:
+        return
+    from ..geometry.inside import inside_mesh
+    from ..geometry.shapes import boundary_surface
+
+    starts = np.concatenate([[0], np.cumsum(s.wall_counts)]).astype(int)
+    for j in bodies:
+        surface = boundary_surface(scene.boundaries[j])
+        b = np.asarray(surface.bounds).reshape(3, 2)
+        for k, wall in enumerate(scene.boundaries):
+            if wall.dynamic:
+                continue  # two bodies: _check_bodies_apart
+            pts = s.boundary_x[starts[k] : starts[k + 1]]
+            pts = pts[np.all((pts >= b[:, 0]) & (pts <= b[:, 1]), axis=1)]
+            if not len(pts):
+                continue
+            inside = pts[inside_mesh(pts, surface, scene.spacing)]
+            if len(inside):
+                _, nearest = surface.find_closest_cell(inside, return_closest_point=True)
+                depth = np.linalg.norm(inside - nearest, axis=1)
+                body, deep = scene.boundaries[j], int(np.argmax(depth))
+                raise ConfigError(
+                    f"boundary[{j}] '{body.name}' is a rigid body that starts through the wall of boundary[{k}] "
+                    f"'{wall.name}': {len(inside)} of '{wall.name}''s wall particles lie inside it, up to "
+                    f"{depth[deep]:.3g} m deep (near {fmt_point(inside[deep])}); move the body clear of the wall"
                 )
 
 
