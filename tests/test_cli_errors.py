@@ -223,6 +223,38 @@ def test_body_through_its_containers_wall_refused(tmp_path, capsys):
     assert re.search(r"up to 0\.0[5-9]\d* m deep \(near \(0\.8", line), line
 
 
+def test_overlapping_fluids_refused_naming_both_and_the_box(tmp_path, capsys):
+    second = '[[fluid]]\nname = "second"\nbox = { min = [0.2, 0, 0], max = [0.6, 0.4, 0.4] }\n'
+    s = scene_file(tmp_path, TANK.format(fluid=BOX_FLUID) + second)
+    line = assert_refused(capsys, tmp_path / "out", s)
+    assert "fluid[0] 'column'" in line and "fluid[1] 'second'" in line, line
+    assert "min (0.2, 0, 0), max (0.4, 0.4, 0.4)" in line, line
+
+
+def test_overlapping_mesh_fluids_refused_naming_where(tmp_path, capsys):
+    for name, lo in (("a.obj", 0.1), ("b.obj", 0.3)):  # two 0.3 m cubes, 0.1 m deep into each other
+        pts, faces = cube(lo, lo + 0.3)
+        write_obj(tmp_path / name, pts, faces)
+    second = '[[fluid]]\nname = "second"\nmesh = "b.obj"\n'
+    s = scene_file(tmp_path, TANK.format(fluid='mesh = "a.obj"') + second)
+    line = assert_refused(capsys, tmp_path / "out", s)
+    assert "fluid[0] 'column'" in line and "fluid[1] 'second'" in line, line
+    box = re.search(r"min \(([^)]*)\), max \(([^)]*)\)", line)
+    lo, hi = (np.array([float(v) for v in g.split(",")]) for g in box.groups())
+    assert np.all(lo >= 0.3 - 1e-9) and np.all(hi <= 0.4 + 1e-9), line  # inside the cubes' common part
+
+
+def test_fluids_that_only_touch_are_not_refused(tmp_path):
+    from ipsph.sampling.scene import check_sampled, sample
+    from ipsph.scene import load_scene
+
+    second = '[[fluid]]\nname = "second"\nbox = { min = [0.4, 0, 0], max = [0.8, 0.4, 0.4] }\n'
+    scene = load_scene(scene_file(tmp_path, TANK.format(fluid=BOX_FLUID) + second))
+    sampled = sample(scene)
+    check_sampled(scene, sampled)
+    assert sampled.fluid_counts == [64, 64]
+
+
 def test_inverted_mesh_is_flipped_and_runs(tmp_path, capsys):
     pts, faces = cube()
     write_obj(tmp_path / "inside_out.obj", pts, [t[::-1] for t in faces])

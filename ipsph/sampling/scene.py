@@ -32,21 +32,23 @@ class SampledScene:
     wall_counts: list[int]  # wall particles per [[boundary]] entry, in order
     fluid_sampled: int = 0  # fluid particles before the overlap removal
     seconds: float = field(default=0.0, compare=False)
+    fluid_counts: list[int] = field(default_factory=list)  # fluid particles per [[fluid]] entry, in order
 
 
 def sample(scene: Scene) -> SampledScene:
     """The scene's particles (see `sample_scene`), with the per-wall counts and timing."""
     t0 = time.perf_counter()
-    fx, fv, bx, notes, counts, n0 = _sample(scene)
-    return SampledScene(fx, fv, bx, notes, counts, n0, time.perf_counter() - t0)
+    fx, fv, bx, notes, counts, n0, fluid_counts = _sample(scene)
+    return SampledScene(fx, fv, bx, notes, counts, n0, time.perf_counter() - t0, fluid_counts)
 
 
 def check_sampled(scene: Scene, s: SampledScene) -> None:
     """Refuse a scene whose particles cannot run (ConfigError, exit 2): rigid bodies that overlap
-    each other or reach through a wall, no fluid at all, or all of it outside every container or
-    inside walls (a scene with emitters may start empty)."""
+    each other or reach through a wall, fluid bodies that overlap each other, no fluid at all, or
+    all of it outside every container or inside walls (a scene with emitters may start empty)."""
     _check_bodies_apart(scene, s)
     _check_bodies_clear_of_walls(scene, s)
+    _check_fluids_apart(scene, s)
     if len(s.fluid_x) or scene.emitters:
         return
     if s.fluid_sampled:
@@ -122,13 +124,67 @@ def _check_bodies_clear_of_walls(scene: Scene, s: SampledScene) -> None:
                 )
 
 
+def _check_fluids_apart(scene: Scene, s: SampledScene) -> None:
+    """Two fluid bodies must not overlap: their particles would start on top of each other (closer
+    than the spacing d, the lattice's own) and blow apart. Boxes that only touch pass (a box's
+    lattice keeps d/2 or more from its faces, d from its min faces), and so do mesh fluids (one
+    lattice for all of them)."""
+    counts = s.fluid_counts
+    if len(counts) < 2:
+        return
+    from ..geometry.points import nearest_distance
+
+    d = scene.spacing
+    near = (1.0 - 1e-6) * d
+    starts = np.concatenate([[0], np.cumsum(counts)]).astype(int)
+    parts = [s.fluid_x[starts[i] : starts[i + 1]] for i in range(len(counts))]
+    for i in range(len(parts)):
+        for j in range(i + 1, len(parts)):
+            a, b = parts[i], parts[j]
+            if not len(a) or not len(b):
+                continue
+            lo = np.maximum(a.min(axis=0), b.min(axis=0)) - d
+            hi = np.minimum(a.max(axis=0), b.max(axis=0)) + d
+            if np.any(lo > hi):
+                continue  # the boxes around them do not meet
+            a = a[np.all((a >= lo) & (a <= hi), axis=1)]
+            b = b[np.all((b >= lo) & (b <= hi), axis=1)]
+            b_close = b[nearest_distance(b, a, d) < near]
+            if not len(b_close):
+                continue
+            a_close = a[nearest_distance(a, b_close, d) < near]
+            fi, fj = scene.fluids[i], scene.fluids[j]
+            box = _box_overlap(fi, fj)
+            if box is None:  # meshes: the box around the crowded particles
+                both = np.concatenate([a_close, b_close])
+                box = both.min(axis=0), both.max(axis=0)
+            raise ConfigError(
+                f"fluid[{i}] '{fi.name}' and fluid[{j}] '{fj.name}' overlap in the box min {fmt_point(box[0])}, "
+                f"max {fmt_point(box[1])}: {len(a_close) + len(b_close)} of their particles start closer than "
+                f"d = 2r = {d:.4g} m to the other's; move them apart or shrink one"
+            )
+
+
+def _box_overlap(a, b) -> tuple[np.ndarray, np.ndarray] | None:
+    """Where two axis-aligned box fluids meet (their boxes' intersection), else None."""
+    if a.shape != "box" or b.shape != "box" or a.transform.rotate_deg or b.transform.rotate_deg:
+        return None
+    from ..geometry.shapes import scaled_box
+
+    (alo, ahi), (blo, bhi) = scaled_box(a), scaled_box(b)
+    at, bt = np.asarray(a.transform.translate), np.asarray(b.transform.translate)
+    lo, hi = np.maximum(alo + at, blo + bt), np.minimum(ahi + at, bhi + bt)
+    return (lo, hi) if np.all(lo < hi) else None
+
+
 def sample_scene(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
     """Fluid positions and velocities, wall particles, and notes on what was removed."""
     return _sample(scene)[:4]
 
 
 def _sample(scene: Scene):
-    """(fluid_x, fluid_v, boundary_x, notes, wall counts, fluid count before removal).
+    """(fluid_x, fluid_v, boundary_x, notes, wall counts, fluid count before removal, fluid
+    particles per [[fluid]] after it).
 
     Fluid particles inside an obstacle, outside every container, or closer than d = 2r to a
     wall particle are removed and counted (the lattice would otherwise start inside a wall).
@@ -145,6 +201,7 @@ def _sample(scene: Scene):
         vs.append(np.tile(np.asarray(spec.velocity, dtype=np.float64), (len(x), 1)))
     fluid_x, fluid_v = np.concatenate(xs), np.concatenate(vs)
     n_sampled = len(fluid_x)
+    fluid_counts = [len(x) for x in xs[1:]]
     walls = [model_of(scene).samples(spec, r) for spec in scene.boundaries]
     boundary_x = np.concatenate([np.zeros((0, 3))] + walls)
     notes = [n for spec in (*scene.fluids, *scene.boundaries) for n in mesh_notes(spec)]
@@ -163,12 +220,14 @@ def _sample(scene: Scene):
                 f"containers and were removed"
             )
             fluid_x, fluid_v = fluid_x[kept], fluid_v[kept]
+            ends = np.cumsum(fluid_counts)
+            fluid_counts = [int(kept[e - n : e].sum()) for n, e in zip(fluid_counts, ends)]
     if scene.emitters:
         from ..flow import wall_notes
 
         notes += wall_notes(scene, boundary_x)
     fluid_x, fluid_v, boundary_x = (np.ascontiguousarray(a) for a in (fluid_x, fluid_v, boundary_x))
-    return fluid_x, fluid_v, boundary_x, notes, [len(w) for w in walls], n_sampled
+    return fluid_x, fluid_v, boundary_x, notes, [len(w) for w in walls], n_sampled, fluid_counts
 
 
 def wall_groups(
