@@ -1,7 +1,8 @@
 """Pre-flight checks of `ipsph run`: bad input exits 2 before any large allocation.
 
 The particle budget (fluid count estimated before sampling), the radius against each fluid
-body's extent, the render size against the available memory. Meshes come from the sampler's
+body's extent, every wall mesh (read, and closed where its inside matters: `check_walls`), the
+render size against the available memory. Meshes come from the sampler's
 in-process memo (`shapes.mesh_report`), so each mesh is read once per run: these checks, the
 sampling and the boundary surface all share it.
 """
