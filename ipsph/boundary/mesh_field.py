@@ -225,7 +225,7 @@ def _build(verts, faces, header, h: float, h_big: float) -> tuple[np.ndarray, in
         ki = (phi < 0.0).astype(np.float64)
         near = np.flatnonzero(np.abs(phi) < h_big)
         if len(near):
-            ki[near] = integral(pts[near], phi[near] < 0.0)
+            ki[near] = integral(pts[near], phi[near])
         band += len(near)
         a = 2 * k0 * nx * ny
         pool[a : a + 2 * len(pts) : 2] = phi

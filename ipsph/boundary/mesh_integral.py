@@ -20,8 +20,10 @@ Q_e = ∫_ball (M(ρ_e) − M(|h|)) d_e dℓ/(d_e² + ℓ²), has a smooth bound
 Gauss–Legendre on the pieces between ρ_e = H/2 and H. No angular or volume discretisation: the
 result is exact to the Gauss rule (≈1e-7 with 6 points a piece on the bunny; tests/test_mesh_field.py).
 
-w is taken from the sign of φ (libigl's winding-number sign), and where that disagrees with the
-geometry at a node lying on the surface (I off by one) the integer is corrected: 0 ≤ I ≤ 1.
+w is taken from the sign of φ (libigl's winding-number sign). On the surface the sum has no limit
+(at a box corner each face's share depends on the way in: π/2 from the apex, 7π/6 along the
+diagonal), so a point within ON_SURFACE of it is first moved NUDGE off it and w read from the sign
+of C (0 < I < 1 there, so C = w − I > 0 exactly when w = 1).
 """
 
 from __future__ import annotations
@@ -33,6 +35,11 @@ import numpy as np
 
 F_H = 1.0 / (4.0 * math.pi)  # F(1): the kernel's whole mass over 4π
 M_1 = 9.0 / (20.0 * math.pi)  # M(1)
+# Points closer to the surface than ON_SURFACE (in H) are moved NUDGE along NUDGE_DIR (a direction no
+# mesh face of practical interest is parallel to): I changes by < 2e-8 there, far below float32.
+ON_SURFACE = 1e-6
+NUDGE = 1e-8
+NUDGE_DIR = (0.5123167361322618, 0.6258837438407195, 0.5880485533310245)
 GAUSS_POINTS = 6  # per piece of an edge: the pieces are analytic in ℓ (module doc); 1.5e-7 against 16 points
 
 
@@ -74,7 +81,7 @@ def _triangle_c(px, py, pz, t, tri, nrm, tau, edge_in, tlen, gx, gw):
     ah = abs(h)
     if ah >= 1.0:
         return 0.0
-    sgn = 1.0 if h >= 0.0 else -1.0  # h = 0: as if x lay just inside (the integer w is fixed after)
+    sgn = 1.0 if h >= 0.0 else -1.0  # h = 0 with p₀ off the triangle: the terms cancel
     f0 = px + h * nrm[t, 0]
     f1 = py + h * nrm[t, 1]
     f2 = pz + h * nrm[t, 2]
@@ -118,12 +125,17 @@ def _triangle_c(px, py, pz, t, tri, nrm, tau, edge_in, tlen, gx, gw):
 
 @nb.njit(parallel=True, cache=True)
 def _integral_kernel(
-    points, inside, tri, nrm, tau, edge_in, tlen, centre, radius, b_lo, b_dims, b_start, b_tri, gx, gw, out
+    points, phi, tri, nrm, tau, edge_in, tlen, centre, radius, b_lo, b_dims, b_start, b_tri, gx, gw, out
 ):
-    """out_i = I(points_i) (H = 1) over the triangles bucketed in i's cell; inside_i the sign of φ."""
+    """out_i = I(points_i) (H = 1) over the triangles bucketed in i's cell; phi_i its signed distance."""
     nbx, nby, nbz = b_dims[0], b_dims[1], b_dims[2]
     for i in nb.prange(points.shape[0]):
         px, py, pz = points[i, 0], points[i, 1], points[i, 2]
+        on_surface = abs(phi[i]) < ON_SURFACE
+        if on_surface:  # the sum has no limit on the surface (it depends on the way in): step off it
+            px += NUDGE * NUDGE_DIR[0]
+            py += NUDGE * NUDGE_DIR[1]
+            pz += NUDGE * NUDGE_DIR[2]
         bx = min(max(int(math.floor(px - b_lo[0])), 0), nbx - 1)
         by = min(max(int(math.floor(py - b_lo[1])), 0), nby - 1)
         bz = min(max(int(math.floor(pz - b_lo[2])), 0), nbz - 1)
@@ -136,11 +148,14 @@ def _integral_kernel(
             if dx * dx + dy * dy + dz * dz >= reach * reach:
                 continue
             c += _triangle_c(px, py, pz, t, tri, nrm, tau, edge_in, tlen, gx, gw)
-        val = (1.0 if inside[i] else 0.0) - c
-        if val < -1e-6:  # a node on the surface that the sign of φ put on the other side
-            val += 1.0
-        elif val > 1.0 + 1e-6:
-            val -= 1.0
+        if on_surface:  # 0 < I < 1 next to the surface, so C = w − I has the sign of w
+            val = (1.0 if c > 0.0 else 0.0) - c
+        else:
+            val = (1.0 if phi[i] < 0.0 else 0.0) - c
+            if val < -1e-6:  # the sign of φ disagreed with the geometry: I is off by one
+                val += 1.0
+            elif val > 1.0 + 1e-6:
+                val -= 1.0
         out[i] = min(max(val, 0.0), 1.0)
 
 
@@ -206,14 +221,14 @@ class MeshIntegral:
         _fill_buckets(t_lo, t_hi, dims, self.b_start, self.b_tri)
         self.gx, self.gw = np.polynomial.legendre.leggauss(GAUSS_POINTS)
 
-    def __call__(self, points, inside) -> np.ndarray:
-        """I at (n, 3) points (same frame and units as the vertices); inside: φ < 0 at each point."""
+    def __call__(self, points, phi) -> np.ndarray:
+        """I at (n, 3) points (same frame and units as the vertices); phi: their signed distances."""
         p = np.ascontiguousarray(np.asarray(points, dtype=np.float64).reshape(-1, 3) / self.support)
         out = np.empty(len(p), dtype=np.float64)
         if len(p):
             _integral_kernel(
                 p,
-                np.ascontiguousarray(inside, dtype=np.bool_),
+                np.ascontiguousarray(np.asarray(phi, dtype=np.float64).ravel() / self.support),
                 self.tri,
                 self.nrm,
                 self.tau,
