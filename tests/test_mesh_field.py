@@ -26,7 +26,8 @@ import numpy as np
 import pytest
 
 from ipsph.backends import field_grid as fg
-from ipsph.boundary.mesh_field import MEMORY_FRACTION, MeshField, mesh_field
+from ipsph.boundary.mesh_field import MEMORY_FRACTION, MeshField, field_for_spec, mesh_field
+from ipsph.config import BoundarySpec, Transform
 from ipsph.boundary.mesh_integral import MeshIntegral
 from ipsph.errors import MeshError
 from ipsph.geometry.meshes import box_mesh, mesh_arrays, signed_volume
@@ -298,6 +299,8 @@ def test_cache_hit_and_miss(tmp_path, monkeypatch):
     assert not first.from_cache and again.from_cache
     assert np.array_equal(first.pool, again.pool) and np.array_equal(first.header, again.header)
     assert not mesh_field(path, H, scale=(1.0, 1.0, 2.0)).from_cache  # the scale is part of the key
+    spec = BoundarySpec(name="lid", shape="mesh", mesh=str(path), transform=Transform(scale=(1.0, 1.0, 2.0)))
+    assert field_for_spec(spec, H).from_cache  # a [[boundary]]'s file and scale: the same grid
     assert not mesh_field(path, 1.5 * H).from_cache  # so is H
     stored.write_bytes(b"not a grid")
     rebuilt = mesh_field(path, H)  # a damaged file is rebuilt, not trusted
@@ -334,8 +337,14 @@ def test_refusals(case, tmp_path, monkeypatch):
 
 
 def test_device_functions_compile_for_cuda():
-    """The grid readers compile as numba-cuda device functions (float32 and float64 pools), when the
-    CUDA compiler libraries are installed (no GPU needed); skipped otherwise."""
+    """The grid readers compile as numba-cuda device functions (float32 and float64 pools), where
+    numba-cuda and the CUDA compiler libraries (NVRTC, NVVM) are installed: no GPU needed."""
+    pathfinder = pytest.importorskip("cuda.pathfinder")
+    for lib in ("nvrtc", "nvvm"):
+        try:
+            pathfinder.load_nvidia_dynamic_lib(lib)
+        except Exception as exc:  # noqa: BLE001 - not installed here
+            pytest.skip(f"no CUDA compiler library {lib}: {str(exc).splitlines()[0]}")
     cuda = pytest.importorskip("ipsph.backends._cuda").cuda
     if cuda is None:
         pytest.skip("numba-cuda is not installed")
@@ -350,10 +359,5 @@ def test_device_functions_compile_for_cuda():
 
     m2 = numba.float64[:, :]
     for pool in (numba.float32[:], numba.float64[:]):
-        try:
-            ptx, _ = cuda.compile_ptx(kernel, (m2, pool, m2, m2), cc=(9, 0))
-        except Exception as exc:  # noqa: BLE001 - no NVVM / NVRTC on this machine
-            if "nvrtc" in str(exc).lower() or "nvvm" in str(exc).lower() or "libdevice" in str(exc).lower():
-                pytest.skip(f"no CUDA compiler libraries: {str(exc).splitlines()[0]}")
-            raise
-        assert "malloc" not in ptx
+        ptx, _ = cuda.compile_ptx(kernel, (m2, pool, m2, m2), cc=(9, 0))
+        assert "malloc" not in ptx and "call.uni" not in ptx  # no allocation, everything inlined

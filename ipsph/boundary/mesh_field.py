@@ -99,9 +99,10 @@ class MeshField:
         return out[:, 0], out[:, 1:4], out[:, 4], out[:, 5:8]
 
 
-@nb.njit(parallel=True, cache=True)
+@nb.njit(cache=True)
 def _sample(hdr, pool, points, out):
-    for i in nb.prange(points.shape[0]):
+    """The grid read point after point, as a pass would (serial: a host helper, compiled in seconds)."""
+    for i in range(points.shape[0]):
         x, y, z = points[i, 0], points[i, 1], points[i, 2]
         out[i, 0], out[i, 1], out[i, 2], out[i, 3] = grid_kernel_integral(hdr, 0, pool, x, y, z)
         out[i, 4], out[i, 5], out[i, 6], out[i, 7] = grid_distance(hdr, 0, pool, x, y, z)
@@ -180,8 +181,7 @@ def _checked_mesh(source, is_file: bool, s: np.ndarray, label: str) -> tuple[np.
         raise MeshError(
             f"mesh {label}: NaN or infinite coordinates at {bad} of {len(mesh.points)} vertices; repair the mesh"
         )
-    transform = model.Transform(translate=(0.0, 0.0, 0.0), scale=tuple(s), rotate_axis=(0.0, 0.0, 1.0), rotate_deg=0.0)
-    prepared, rep = meshes.prepare_mesh(mesh, transform, need_closed=False, name=label)
+    prepared, rep = meshes.prepare_mesh(mesh, model.Transform(scale=tuple(s)), need_closed=False, name=label)
     if rep.open_edges or rep.non_manifold_edges or rep.unpaired_edges:
         raise MeshError(
             f"mesh {label}: a field grid needs a closed manifold surface; this one has {rep.open_edges} open, "
