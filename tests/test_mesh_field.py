@@ -10,13 +10,14 @@ Tolerances (each named where used):
                        directions): the ray rule's own error, measured 2.3e-5 / 1.1e-5 / 3e-6 / 5e-8 at
                        100 / 200 / 400 / 800 polar nodes on these features, so 5e-5 is 4x its error at 200
   EXACT_BALL    3e-4   the evaluator on an icosphere (nsub 5) vs the exact ball of the same volume: the
-                       facets' ripple (sagitta 2e-5 m at H = 20 mm), measured 1.4e-4
+                       facets' ripple (facet depth ≈ 1e-5 m at R = 50 mm, H = 20 mm), measured 1.4e-4
   GRID_I        1e-3   grid vs exact, h_g = H/8: the brief's budget; Catmull-Rom's 1D face error is 5.4e-4
-                       (brief section 7), measured 6.9e-4 at the rotated box's edges and corners
+                       (brief section 7), measured 6.5e-4 at the rotated box's edges and corners, 4.4e-4
+                       on the sphere (6.7e-4 on the 0.2 m bunny, not run here)
   GRID_GRAD     0.05   H |grid ∇I − exact ∇I|, h_g = H/8: the brief's budget (1D Catmull-Rom: 0.041),
-                       measured 0.023 (box) and 0.035 (sphere)
+                       measured 0.017 (box), 0.029 (sphere), 0.039 (bunny, not run here)
   GRID_PHI      0.5 h_g  trilinear φ vs the exact distance: a distance has kinks at edges, corners and the
-                       medial planes, where linear interpolation is off by up to half a cell; measured 0.38
+                       medial planes, where linear interpolation is off by up to half a cell; measured 0.33
 """
 
 import math

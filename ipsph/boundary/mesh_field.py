@@ -249,7 +249,10 @@ def _key(source, is_file: bool, s: np.ndarray, h_big: float, h: float) -> str:
             a = np.ascontiguousarray(a)
             d.update(str(a.dtype).encode() + repr(a.shape).encode() + a.tobytes())
     else:
-        v, f = meshes.mesh_arrays(source)
+        try:
+            v, f = meshes.mesh_arrays(source)
+        except Exception:  # noqa: BLE001 - not a triangle PolyData: no cache, the checks explain
+            return ""
         d.update(v.tobytes() + f.tobytes())
     d.update(repr(tuple(float(x).hex() for x in (*s, h_big, h))).encode())
     return d.hexdigest()
