@@ -86,9 +86,13 @@ class Simulation:
 
         lattice = rest_lattice(scene, boundary_x) if scene.fit_wall_volumes else None
         groups, depth = wall_groups(scene, len(boundary_x), wall_counts)
-        self.boundary = model_of(scene).particles(
-            boundary_x, self.support, scene.density0, lattice, self.spacing, groups, depth
-        )
+        walls = model_of(scene)
+        self.boundary = walls.particles(boundary_x, self.support, scene.density0, lattice, self.spacing, groups, depth)
+        self.boundary.field = walls.field(scene)
+        self.be.wall_mirror = walls.pressure_mirror
+        if self.boundary.field is not None:  # no wall particles: the surfaces stand in for them below
+            boundary_x = walls.surface_points(scene)
+        self.wall_points = boundary_x  # the walls as points, for the host's geometric questions
         self.walls = None  # moving walls and rigid bodies (ipsph.boundary.rigid)
         if groups is not None:
             from .boundary.rigid import WallDriver
@@ -125,7 +129,7 @@ class Simulation:
         pressure (`ipsph.methods.settle.hydrostatic_pressure`, method.md section 1): the first steps then
         correct that seed near the walls and the free surfaces instead of loading the column up
         from the floor."""
-        p = hydrostatic_pressure(self.scene, self.be.to_host(self.state.x), self.boundary.x)
+        p = hydrostatic_pressure(self.scene, self.be.to_host(self.state.x), self.wall_points)
         if p is not None and np.any(p):
             self.method.seed(self.be.asarray(p), self.dt_next)
 

@@ -24,6 +24,8 @@ from ipsph.backends.cpu_passes import (
 from ipsph.scene import default_scene_path, load_scene
 from ipsph.simulation import Simulation, sample_scene
 
+NO_FIELD, NO_FIELD_GRAD = np.zeros(0), np.zeros((0, 3))  # no field walls: their arrays have no rows
+
 # The cached and the uncached passes sum the same float64 products in another association
 # (mf (sum f d) against sum (mf f d)): they agree to a few ulps of the largest term, far below
 # anything a wrong factor, sign, index or stale cache produces (>= 1e-3 relative).
@@ -74,6 +76,9 @@ def _filled(sim, by):
             d.n_nbrs,
             d.gb,
             cache,
+            NO_FIELD,
+            NO_FIELD_GRAD,
+            1.0,
         )
     else:
         xsph(
@@ -93,6 +98,7 @@ def _filled(sim, by):
             np.empty(n),
             NO_DISPLACEMENT,
             cache,
+            1.0,
         )
     return cache
 
@@ -123,7 +129,7 @@ def test_cached_passes_equal_the_uncached_ones(splashing, by):
     out = {}
     for name, pg in (("cached", cache), ("uncached", NO_PAIR_CACHE)):
         v, kt, drho, kk, err = st.v.copy(), np.zeros(n), np.empty(n), np.empty(n), np.empty(n)
-        apply_stiffness(st.x, fl.mf, d.gb, nf, cf, pg, fl.h, k, dt, v, kt)
+        apply_stiffness(st.x, fl.mf, d.gb, nf, cf, pg, fl.h, k, dt, v, kt, 1.0)
         divergence_residual(st.x, v, fl.mf, d.gb, d.gvb, nf, cf, pg, fl.h, d.alpha, d.n_nbrs, dt, drho, kk)
         density_residual(st.x, v, fl.mf, d.gb, d.gvb, nf, cf, pg, fl.h, d.rho, d.alpha, fl.rho0, dt, err, kk)
         out[name] = v, drho, err

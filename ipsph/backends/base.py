@@ -29,7 +29,9 @@ class Densities:
     DFSPH factor alpha, PF multiplier lam, density error err = max(rho/rho0 - 1, 0), neighbour
     count n_nbrs, and the walls' gradient sum gb_i = sum_b m_b grad W_ib that every later pass
     at the same positions takes the walls from; gvb_i = sum_b m_b v_b . grad W_ib, the moving
-    walls' part of D rho_i/Dt (`wall_rate`; stays 0 with static walls)."""
+    walls' part of D rho_i/Dt (`wall_rate`; stays 0 with static walls). With field walls, wb and gw
+    are their density and its gradient (`wall_field`, added into rho and gb by the density pass) and
+    ws the mean depth of the wall below each particle (`wall_pressure`); without, they have no rows."""
 
     rho: Array
     alpha: Array
@@ -38,9 +40,13 @@ class Densities:
     n_nbrs: Array
     gb: Array
     gvb: Array
+    wb: Array
+    gw: Array
+    ws: Array
 
     @classmethod
-    def allocate(cls, be: "Backend", n: int) -> "Densities":
+    def allocate(cls, be: "Backend", n: int, field: bool = False) -> "Densities":
+        m = n if field else 0
         return cls(
             be.zeros(n),
             be.zeros(n),
@@ -49,6 +55,9 @@ class Densities:
             be.zeros(n, dtype="int32"),
             be.zeros(n, (3,)),
             be.zeros(n),
+            be.zeros(m),
+            be.zeros(m, (3,)),
+            be.zeros(m),
         )
 
     def arrays(self) -> tuple:
@@ -57,6 +66,11 @@ class Densities:
 
 class Backend:
     """The interface (every method raises here; `CPUBackend` implements it)."""
+
+    # The walls' share in every pressure term, as a multiple of the particle's own (bodies.stiffness_at):
+    # 1 carries the particle's pressure once (Akinci's walls), 2 mirrors it onto the wall. The wall
+    # model sets it (`Simulation`): it belongs to the walls, the passes only apply it.
+    wall_mirror: float = 1.0
 
     name = ""
     NO_PAIRS: Array = None  # the empty pair cache: a pass given it neither fills nor reads it
@@ -151,6 +165,18 @@ class Backend:
 
     def cg_precondition(self, r, diag, rho, mf, z, rz, rr) -> None:
         raise NotImplementedError  # z = r / diag, rz_i = V_i r_i . z_i, rr_i = V_i |r_i|^2 (element-wise)
+
+    def wall_field(self, x, field, rho0, out: Densities) -> None:
+        """Field walls: out.wb, out.gw and out.gvb at x (`field_bodies.wall_field_at`)."""
+        raise NotImplementedError
+
+    def wall_pressure(self, dens: Densities, g, rho0: float, dt: float, v) -> None:
+        """Field walls: the hydrostatic part of the mirrored wall pressure on v (`field_bodies.wall_pressure_at`)."""
+        raise NotImplementedError
+
+    def wall_project(self, x, v, field, moved) -> int:
+        """Field walls: keep x at least field.phi_min outside every surface (`field_bodies.wall_project_at`)."""
+        raise NotImplementedError
 
     def wall_rate(self, x, walls, nl, h, dens) -> None:
         raise NotImplementedError  # dens.gvb (walls.v: moving walls)

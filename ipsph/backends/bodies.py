@@ -119,59 +119,10 @@ def _density_sums(n, buf, h, rho_self, keep_f):
     return rho_w, g0, g1, g2, b0, b1, b2, s2, nn
 
 
-@njit(inline="always", fastmath=FAST)
-def _viscosity_sums(i, n_f, buf, h, eps, mf, standard, fill, pair_grad):
-    """viscosity_at's neighbour loop; with `fill` (a constant at each call site) it also
-    stores pair_grad[i, :, k] = mf grad W_ij."""
-    a0 = a1 = a2 = 0.0  # XSPH: sum_j (1/rho_j) v_ij W_ij
-    s0 = s1 = s2 = 0.0  # Standard viscosity: sum_j (1/rho_j) (v_ij . x_ij) / (r^2 + eps) grad W_ij
-    p0 = p1 = p2 = 0.0  # PF displacement: sum_j (lam_i + lam_j) grad W_ij
-    dr = 0.0  # sum_j v_ij . grad W_ij
-    for k in range(n_f):
-        d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
-        r2 = d0 * d0 + d1 * d1 + d2 * d2
-        r = math.sqrt(r2)
-        u0, u1, u2 = buf[C1, k], buf[C2, k], buf[C3, k]
-        inv_rho = buf[C4, k]
-        wij = inv_rho * w(r, h)
-        a0 += wij * u0
-        a1 += wij * u1
-        a2 += wij * u2
-        g = grad_w_factor(r, h)
-        ud = u0 * d0 + u1 * d1 + u2 * d2
-        dr += g * ud
-        if standard:  # loop-invariant: LLVM unswitches it, so nu = 0 pays no division
-            sv = inv_rho * ud * g / (r2 + eps)
-            s0 += sv * d0
-            s1 += sv * d1
-            s2 += sv * d2
-        if fill:
-            gm = mf * g
-            pair_grad[i, 0, k] = gm * d0
-            pair_grad[i, 1, k] = gm * d1
-            pair_grad[i, 2, k] = gm * d2
-        gl = buf[C5, k] * g
-        p0 += gl * d0
-        p1 += gl * d1
-        p2 += gl * d2
-    return a0, a1, a2, s0, s1, s2, p0, p1, p2, dr
-
-
 # -- the bodies ----------------------------------------------------------------------------------
 @njit(inline="always", fastmath=FAST)
-def density_at(i, x, mf, xb, mb, nf, cf, nb, cb, h, rho0, w0, fill, buf, rho, alpha, lam, err, n_nbrs, gb, pair_grad):
-    """Density, DFSPH factor, PF multiplier, density error and wall gradient of particle i:
-
-    rho_i   = mf W(0) + sum_j mf W_ij + sum_b m_b W_ib           (w0 = W(0))
-    gb_i    = sum_b m_b grad W_ib     (the walls' part: fixed while positions are, so the
-                                       pressure solves and the viscosity pass reuse it)
-    g_i     = sum_j mf grad W_ij + gb_i
-    alpha_i = 1 / max(|g_i|^2 + sum_j |mf grad W_ij|^2, 1e-5)           [BK17 eq. 9]
-    C_i     = max(rho_i / rho0 - 1, 0)                                  [WKB16, unilateral]
-    lam_i   = -C_i / (sum_k |G_ik|^2 + 1e-6),  sum_k |G_ik|^2 = (|g_i|^2 + sum_j |mf grad W_ij|^2) / rho0^2
-    err_i   = C_i;  n_nbrs_i = |{j : r_ij < H}| + |{b : r_ib < H}|
-    pair_grad[i, :, k] = mf grad W_ij   (only with `fill`)
-    """
+def density_core(i, x, mf, xb, mb, nf, cf, nb, cb, h, w0, fill, buf, pair_grad):
+    """density_at's neighbour sums (and the pair cache with `fill`): rho_i, g_i, gb_i, sum_j |f_j|^2, count."""
     n_f, n_b = _gather_x(i, x, xb, nf, cf, nb, cb, buf)
     for k in range(n_f):
         buf[C0, k] = mf
@@ -189,7 +140,11 @@ def density_at(i, x, mf, xb, mb, nf, cf, nb, cb, h, rho0, w0, fill, buf, rho, al
             pair_grad[i, 0, k] = f * buf[DX, k]
             pair_grad[i, 1, k] = f * buf[DY, k]
             pair_grad[i, 2, k] = f * buf[DZ, k]
-    sum_sq = g0 * g0 + g1 * g1 + g2 * g2 + s2
+    return rho_i, g0, g1, g2, b0, b1, b2, s2, nn
+
+
+@njit(inline="always", fastmath=FAST)
+def density_store(i, rho0, rho_i, sum_sq, nn, b0, b1, b2, rho, alpha, lam, err, n_nbrs, gb):
     rho[i] = rho_i
     alpha[i] = 1.0 / max(sum_sq, 1e-5)
     c = max(rho_i / rho0 - 1.0, 0.0)
@@ -199,6 +154,25 @@ def density_at(i, x, mf, xb, mb, nf, cf, nb, cb, h, rho0, w0, fill, buf, rho, al
     gb[i, 0] = b0
     gb[i, 1] = b1
     gb[i, 2] = b2
+
+
+@njit(inline="always", fastmath=FAST)
+def density_at(i, x, mf, xb, mb, nf, cf, nb, cb, h, rho0, w0, fill, buf, rho, alpha, lam, err, n_nbrs, gb, pair_grad):
+    """Density, DFSPH factor, PF multiplier, density error and wall gradient of particle i:
+
+    rho_i   = mf W(0) + sum_j mf W_ij + sum_b m_b W_ib           (w0 = W(0))
+    gb_i    = sum_b m_b grad W_ib     (the walls' part: fixed while positions are, so the
+                                       pressure solves and the viscosity pass reuse it)
+    g_i     = sum_j mf grad W_ij + gb_i
+    alpha_i = 1 / max(|g_i|^2 + sum_j |mf grad W_ij|^2, 1e-5)           [BK17 eq. 9]
+    C_i     = max(rho_i / rho0 - 1, 0)                                  [WKB16, unilateral]
+    lam_i   = -C_i / (sum_k |G_ik|^2 + 1e-6),  sum_k |G_ik|^2 = (|g_i|^2 + sum_j |mf grad W_ij|^2) / rho0^2
+    err_i   = C_i;  n_nbrs_i = |{j : r_ij < H}| + |{b : r_ib < H}|
+    pair_grad[i, :, k] = mf grad W_ij   (only with `fill`)
+    """
+    rho_i, g0, g1, g2, b0, b1, b2, s2, nn = density_core(i, x, mf, xb, mb, nf, cf, nb, cb, h, w0, fill, buf, pair_grad)
+    sum_sq = g0 * g0 + g1 * g1 + g2 * g2 + s2
+    density_store(i, rho0, rho_i, sum_sq, nn, b0, b1, b2, rho, alpha, lam, err, n_nbrs, gb)
 
 
 @njit(inline="always", fastmath=FAST)
@@ -247,8 +221,10 @@ def density_residual_at(i, x, v, mf, gb, gvb, nf, cf, pair_grad, cached, h, rho,
 
 
 @njit(inline="always", fastmath=FAST)
-def stiffness_at(i, x, mf, gb, nf, cf, pair_grad, cached, h, k, dt, buf, v, k_total):
-    """v_i -= dt [sum_j mf (k_i + k_j) grad W_ij + k_i gb_i];  k_total_i += k_i.
+def stiffness_at(i, x, mf, gb, nf, cf, pair_grad, cached, h, k, dt, buf, v, k_total, mirror):
+    """v_i -= dt [sum_j mf (k_i + k_j) grad W_ij + mirror k_i gb_i];  k_total_i += k_i.
+
+    mirror: the walls' stiffness k_b = (mirror - 1) k_i (1: carried once, Akinci's; 2: mirrored).
 
     In place: reads k of the neighbours and writes v_i, k_total_i only. mf grad W_ij comes from
     the pair cache when `cached`, else from the positions."""
@@ -270,83 +246,20 @@ def stiffness_at(i, x, mf, gb, nf, cf, pair_grad, cached, h, k, dt, buf, v, k_to
         a0 *= mf
         a1 *= mf
         a2 *= mf
-    v[i, 0] -= dt * (a0 + ki * gb[i, 0])
-    v[i, 1] -= dt * (a1 + ki * gb[i, 1])
-    v[i, 2] -= dt * (a2 + ki * gb[i, 2])
+    kw = ki if mirror == 1.0 else mirror * ki  # once: exactly the particle models' arithmetic
+    v[i, 0] -= dt * (a0 + kw * gb[i, 0])
+    v[i, 1] -= dt * (a1 + kw * gb[i, 1])
+    v[i, 2] -= dt * (a2 + kw * gb[i, 2])
     k_total[i] += ki
 
 
 @njit(inline="always", fastmath=FAST)
-def viscosity_at(
-    i,
-    x,
-    v,
-    mf,
-    rho,
-    gb,
-    gvb,
-    lam,
-    nf,
-    cf,
-    h,
-    zeta,
-    nu_dt,
-    eps,
-    standard,
-    with_disp,
-    fill,
-    buf,
-    v_out,
-    drho,
-    disp,
-    pair_grad,
-):
-    """The viscosity pass for particle i: XSPH filter [SB12] and SPlisHSPlasH's "Standard"
-    viscosity, explicit:
-
-        v_i <- v_i - zeta sum_j (mf / rho_j) (v_i - v_j) W_ij
-                   + 10 nu dt sum_j (mf / rho_j) (v_ij . x_ij) / (r_ij^2 + 0.01 H^2) grad W_ij
-
-    (Monaghan 2005's SPH Laplacian with the 2 (d + 2) = 10 of 3D, as SPlisHSPlasH's
-    Viscosity_Standard without its wall term; nu_dt = nu dt, eps = 0.01 H^2). Walls take no part.
-    By-products of the same neighbour loop:
-        drho_i = D rho_i/Dt of the input velocities (walls through gb_i and gvb_i);
-        disp_i = sum_j mf (lam_i + lam_j) grad W_ij + lam_i gb_i, with `with_disp`: rho0 times
-                 the PF displacement of the multipliers lam (IPSPH's next warm start);
-        pair_grad[i, :, k] = mf grad W_ij, with `fill`.
-    """
-    n_f = _gather_xf(i, x, nf, cf, buf)
-    _gather_rate_f(i, v, nf, n_f, buf)
-    li = lam[i] if with_disp else 0.0
-    for k in range(n_f):
-        j = nf[i, k]
-        buf[C4, k] = 1.0 / rho[j]
-        buf[C5, k] = li + lam[j] if with_disp else 0.0
-    vi0, vi1, vi2 = v[i, 0], v[i, 1], v[i, 2]
-    if fill:  # two copies of the loop, one with the cache's stores (a runtime test inside
-        #       the loop stops LLVM vectorising it)
-        a0, a1, a2, s0, s1, s2, p0, p1, p2, dr = _viscosity_sums(i, n_f, buf, h, eps, mf, standard, True, pair_grad)
-    else:
-        a0, a1, a2, s0, s1, s2, p0, p1, p2, dr = _viscosity_sums(i, n_f, buf, h, eps, mf, standard, False, pair_grad)
-    drho[i] = mf * dr + vi0 * gb[i, 0] + vi1 * gb[i, 1] + vi2 * gb[i, 2] - gvb[i]
-    zm = zeta * mf
-    nm = 10.0 * nu_dt * mf
-    v_out[i, 0] = vi0 - zm * a0 + nm * s0
-    v_out[i, 1] = vi1 - zm * a1 + nm * s1
-    v_out[i, 2] = vi2 - zm * a2 + nm * s2
-    if with_disp:
-        disp[i, 0] = mf * p0 + li * gb[i, 0]
-        disp[i, 1] = mf * p1 + li * gb[i, 1]
-        disp[i, 2] = mf * p2 + li * gb[i, 2]
-
-
-@njit(inline="always", fastmath=FAST)
-def pf_global_at(k, x, s, mf, gb, nf, cf, h, rho0, lam, a, buf, x_out, lam_sum):
+def pf_global_at(k, x, s, mf, gb, nf, cf, h, rho0, lam, a, buf, x_out, lam_sum, mirror):
     """One global step of Projective Fluids [WKB16] for particle k, with the constraint
     gradients of the local step (density_at, just before, at the same positions):
 
         d_k   = sum_{c in {k} u N(k)} lam_c G_ck
-              = (1/rho0) [ sum_j mf (lam_k + lam_j) grad W_kj + lam_k gb_k ]
+              = (1/rho0) [ sum_j mf (lam_k + lam_j) grad W_kj + mirror lam_k gb_k ]
         x_k  <- (mf s_k + a n_k (x_k + d_k)) / (mf + a n_k),        a = dt^2 k_s, n_k = |N(k)| + 1
         Lam_k <- beta_k (Lam_k + lam_k),  beta_k = a n_k / (mf + a n_k)    (pressure bookkeeping)
 
@@ -359,9 +272,10 @@ def pf_global_at(k, x, s, mf, gb, nf, cf, h, rho0, lam, a, buf, x_out, lam_sum):
     d0, d1, d2 = _weighted_gradient(n_f, buf, C0, h)
     an = a * (cf[k] + 1)  # n_k: the lists were built at s
     inv = 1.0 / (mf + an)
-    x_out[k, 0] = (mf * s[k, 0] + an * (x[k, 0] + (mf * d0 + lk * gb[k, 0]) / rho0)) * inv
-    x_out[k, 1] = (mf * s[k, 1] + an * (x[k, 1] + (mf * d1 + lk * gb[k, 1]) / rho0)) * inv
-    x_out[k, 2] = (mf * s[k, 2] + an * (x[k, 2] + (mf * d2 + lk * gb[k, 2]) / rho0)) * inv
+    lw = lk if mirror == 1.0 else mirror * lk
+    x_out[k, 0] = (mf * s[k, 0] + an * (x[k, 0] + (mf * d0 + lw * gb[k, 0]) / rho0)) * inv
+    x_out[k, 1] = (mf * s[k, 1] + an * (x[k, 1] + (mf * d1 + lw * gb[k, 1]) / rho0)) * inv
+    x_out[k, 2] = (mf * s[k, 2] + an * (x[k, 2] + (mf * d2 + lw * gb[k, 2]) / rho0)) * inv
     lam_sum[k] = an * inv * (lam_sum[k] + lk)
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import cpu_field as F
 from . import cpu_passes as P
 from ..errors import ConfigError
 from ..params import PRECISIONS
@@ -96,6 +97,8 @@ class CPUBackend(Backend):
 
     # -- per-particle passes ------------------------------------------------------------------------
     def densities(self, x, mf, walls, nl, h, rho0, out: Densities, pairs):
+        if walls.field is not None:
+            self.wall_field(x, walls.field, rho0, out)
         P.density_factor_lambda(
             x,
             mf,
@@ -114,8 +117,20 @@ class CPUBackend(Backend):
             out.n_nbrs,
             out.gb,
             pairs,
+            out.wb,
+            out.gw,
+            self.wall_mirror,
         )
         return pairs
+
+    def wall_field(self, x, field, rho0, out: Densities) -> None:
+        F.wall_field(x, field.h, rho0, field.delta_h, field.arrays(), out.wb, out.gw, out.gvb, out.ws)
+
+    def wall_pressure(self, dens: Densities, g, rho0, dt, v) -> None:
+        F.wall_pressure(dens.gw, dens.ws, g, rho0, dt, v)
+
+    def wall_project(self, x, v, field, moved) -> int:
+        return int(F.wall_project(x, v, field.h, field.phi_min, field.arrays(), moved))
 
     def divergence_residual(self, x, v, mf, dens, nl, pairs, h, dt, drho, k):
         P.divergence_residual(
@@ -128,7 +143,7 @@ class CPUBackend(Backend):
         )
 
     def apply_stiffness(self, x, mf, dens, nl, pairs, h, k, dt, v, k_total):
-        P.apply_stiffness(x, mf, dens.gb, nl.fluid, nl.fluid_count, pairs, h, k, dt, v, k_total)
+        P.apply_stiffness(x, mf, dens.gb, nl.fluid, nl.fluid_count, pairs, h, k, dt, v, k_total, self.wall_mirror)
 
     def viscosity(self, x, v, mf, dens, lam, nl, h, zeta, nu_dt, v_out, drho, disp, pairs):
         P.xsph(
@@ -148,6 +163,7 @@ class CPUBackend(Backend):
             drho,
             disp,
             pairs,
+            self.wall_mirror,
         )
         return pairs
 
@@ -184,7 +200,7 @@ class CPUBackend(Backend):
         P.wall_rate(x, walls.x, walls.m, walls.v, nl.boundary, nl.boundary_count, h, dens.gvb)
 
     def pf_global(self, x, s, mf, dens, nl, h, rho0, a, x_out, lam_sum):
-        P.pf_global(x, s, mf, dens.gb, nl.fluid, nl.fluid_count, h, rho0, dens.lam, a, x_out, lam_sum)
+        P.pf_global(x, s, mf, dens.gb, nl.fluid, nl.fluid_count, h, rho0, dens.lam, a, x_out, lam_sum, self.wall_mirror)
 
     def advance(self, x, v, dt, g, x_old):
         P.advance(x, v, dt, g, x_old)

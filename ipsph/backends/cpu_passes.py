@@ -12,13 +12,12 @@ element-wise updates a step needs (one loop each instead of numpy temporaries, w
 (3,) vector over (n, 3) costs more than the arithmetic: docs/performance.md).
 """
 
-import os
-
 import numpy as np
 from numba import njit, prange
 
 from . import kernels
-from . import bodies
+from . import bodies, field_bodies, field_grid, viscous_bodies, wall_field
+from ._cache import depend_on
 from .bodies import (
     DENSITY_ROWS,
     FAST,
@@ -34,10 +33,10 @@ from .bodies import (
     divergence_residual_at,
     pf_global_at,
     stiffness_at,
-    viscosity_at,
     wall_rate_at,
 )
-from .viscous_bodies import cg_precondition_at, viscous_apply_at, viscous_setup_at
+from .field_bodies import field_density_at
+from .viscous_bodies import cg_precondition_at, viscosity_at, viscous_apply_at, viscous_setup_at
 from .kernels import w
 
 CHUNKS = 64  # blocks of particles per pass, each with its own scratch buffer
@@ -73,37 +72,69 @@ def _chunk(c, n_chunks, n):
 
 # -- per-particle passes ---------------------------------------------------------------------------
 @njit(parallel=True, fastmath=FAST, cache=True)
-def density_factor_lambda(x, mf, xb, mb, nf, cf, nb, cb, h, rho0, rho, alpha, lam, err, n_nbrs, gb, pair_grad):
-    """bodies.density_at for every particle; fills the pair cache if it has a row per particle."""
+def density_factor_lambda(
+    x, mf, xb, mb, nf, cf, nb, cb, h, rho0, rho, alpha, lam, err, n_nbrs, gb, pair_grad, wb, gw, mirror
+):
+    """bodies.density_at for every particle; fills the pair cache if it has a row per particle, adds
+    the field walls' wb, gw if they have one."""
     fill = pair_grad.shape[0] == x.shape[0]
+    field = wb.shape[0] == x.shape[0]
     w0 = w(0.0, h)
     bufs = _buffers(DENSITY_ROWS, nf, nb)
     for c in prange(bufs.shape[0]):
         lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
         for i in range(lo, hi):
-            density_at(
-                i,
-                x,
-                mf,
-                xb,
-                mb,
-                nf,
-                cf,
-                nb,
-                cb,
-                h,
-                rho0,
-                w0,
-                fill,
-                bufs[c],
-                rho,
-                alpha,
-                lam,
-                err,
-                n_nbrs,
-                gb,
-                pair_grad,
-            )
+            if field:  # field walls: their own body, so the particle models run exactly as they did
+                field_density_at(
+                    i,
+                    x,
+                    mf,
+                    xb,
+                    mb,
+                    nf,
+                    cf,
+                    nb,
+                    cb,
+                    h,
+                    rho0,
+                    w0,
+                    fill,
+                    bufs[c],
+                    rho,
+                    alpha,
+                    lam,
+                    err,
+                    n_nbrs,
+                    gb,
+                    pair_grad,
+                    wb,
+                    gw,
+                    mirror,
+                )
+            else:
+                density_at(
+                    i,
+                    x,
+                    mf,
+                    xb,
+                    mb,
+                    nf,
+                    cf,
+                    nb,
+                    cb,
+                    h,
+                    rho0,
+                    w0,
+                    fill,
+                    bufs[c],
+                    rho,
+                    alpha,
+                    lam,
+                    err,
+                    n_nbrs,
+                    gb,
+                    pair_grad,
+                )
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)
@@ -164,19 +195,19 @@ def density_residual(x, v, mf, gb, gvb, nf, cf, pair_grad, h, rho, alpha, rho0, 
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)
-def apply_stiffness(x, mf, gb, nf, cf, pair_grad, h, k, dt, v, k_total):
+def apply_stiffness(x, mf, gb, nf, cf, pair_grad, h, k, dt, v, k_total, mirror):
     """bodies.stiffness_at for every particle (in place on v, k_total)."""
     bufs = _fluid_buffers(STIFFNESS_ROWS, nf)
     for c in prange(bufs.shape[0]):
         lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
         for i in range(lo, hi):
             stiffness_at(
-                i, x, mf, gb, nf, cf, pair_grad, pair_grad.shape[0] == x.shape[0], h, k, dt, bufs[c], v, k_total
+                i, x, mf, gb, nf, cf, pair_grad, pair_grad.shape[0] == x.shape[0], h, k, dt, bufs[c], v, k_total, mirror
             )
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)
-def xsph(x, v, mf, rho, gb, gvb, lam, nf, cf, h, zeta, nu_dt, v_out, drho, disp, pair_grad):
+def xsph(x, v, mf, rho, gb, gvb, lam, nf, cf, h, zeta, nu_dt, v_out, drho, disp, pair_grad, mirror):
     """bodies.viscosity_at for every particle; the PF displacement only if `disp` has a row per
     particle, the pair cache only if `pair_grad` has."""
     with_disp = disp.shape[0] == x.shape[0]
@@ -210,17 +241,18 @@ def xsph(x, v, mf, rho, gb, gvb, lam, nf, cf, h, zeta, nu_dt, v_out, drho, disp,
                 drho,
                 disp,
                 pair_grad,
+                mirror,
             )
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)
-def pf_global(x, s, mf, gb, nf, cf, h, rho0, lam, a, x_out, lam_sum):
+def pf_global(x, s, mf, gb, nf, cf, h, rho0, lam, a, x_out, lam_sum, mirror):
     """bodies.pf_global_at for every particle."""
     bufs = _fluid_buffers(PF_GLOBAL_ROWS, nf)
     for c in prange(bufs.shape[0]):
         lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
         for k in range(lo, hi):
-            pf_global_at(k, x, s, mf, gb, nf, cf, h, rho0, lam, a, bufs[c], x_out, lam_sum)
+            pf_global_at(k, x, s, mf, gb, nf, cf, h, rho0, lam, a, bufs[c], x_out, lam_sum, mirror)
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)
@@ -345,28 +377,7 @@ def warm_stiffness(k_total, scale, rate, n_nbrs, min_nbrs, warm):
         k_total[i] = 0.0
 
 
-# -- cache=True keys a pass's cache on this file only: make it notice edits to the bodies and the
-#    kernel formulas it inlines (numba's index stamp is (mtime, size) of the source; ours covers
-#    all three files, so editing any of them recompiles)
-def _depend_on_inlined_sources() -> None:
-    files = (__file__, bodies.__file__, kernels.__file__)
-    stats = [os.stat(f) for f in files]
-    stamp = (max(s.st_mtime for s in stats), sum(s.st_size for s in stats))
-    for d in (
-        density_factor_lambda,
-        divergence_residual,
-        density_residual,
-        apply_stiffness,
-        xsph,
-        pf_global,
-        wall_rate,
-        viscous_setup,
-        viscous_apply,
-        cg_precondition,
-    ):
-        cache_file = getattr(getattr(d, "_cache", None), "_cache_file", None)
-        if cache_file is not None and hasattr(cache_file, "_source_stamp"):
-            cache_file._source_stamp = stamp
-
-
-_depend_on_inlined_sources()
+# -- cache=True keys a pass's cache on this file only: it also depends on the bodies it inlines
+_PASSES = (density_factor_lambda, divergence_residual, density_residual, apply_stiffness, xsph, pf_global, wall_rate)
+_INLINED = (bodies, viscous_bodies, field_bodies, wall_field, field_grid, kernels)
+depend_on((*_PASSES, viscous_setup, viscous_apply, cg_precondition), (__file__, *(m.__file__ for m in _INLINED)))

@@ -197,6 +197,9 @@ class CUDABackend(Backend):
             out.n_nbrs,
             out.gb,
             pairs,
+            out.wb,
+            out.gw,
+            self.wall_mirror,
         )
         return pairs
 
@@ -256,6 +259,7 @@ class CUDABackend(Backend):
             dt,
             v,
             k_total,
+            self.wall_mirror,
         )
 
     def viscosity(self, x, v, mf, dens, lam, nl, h, zeta, nu_dt, v_out, drho, disp, pairs):
@@ -278,6 +282,7 @@ class CUDABackend(Backend):
             drho,
             disp,
             pairs,
+            self.wall_mirror,
         )
         return pairs
 
@@ -297,6 +302,7 @@ class CUDABackend(Backend):
             a,
             x_out,
             lam_sum,
+            self.wall_mirror,
         )
 
     def wall_rate(self, x, walls, nl, h, dens):

@@ -25,7 +25,7 @@ import math
 import numpy as np
 
 from . import kernels
-from . import bodies, viscous_bodies
+from . import bodies, field_bodies, viscous_bodies
 from ._cuda import SIMULATOR, cuda, device_function
 from .bodies import (
     DENSITY_ROWS,
@@ -46,10 +46,11 @@ f64 = np.float64
 
 # the bodies as device functions (the same source as the CPU backend's passes)
 density_at = device_function(bodies.density_at)
+field_density_at = device_function(field_bodies.field_density_at)
 divergence_residual_at = device_function(bodies.divergence_residual_at)
 density_residual_at = device_function(bodies.density_residual_at)
 stiffness_at = device_function(bodies.stiffness_at)
-viscosity_at = device_function(bodies.viscosity_at)
+viscosity_at = device_function(viscous_bodies.viscosity_at)
 pf_global_at = device_function(bodies.pf_global_at)
 wall_rate_at = device_function(bodies.wall_rate_at)
 viscous_setup_at = device_function(viscous_bodies.viscous_setup_at)
@@ -72,14 +73,65 @@ def passes(kf: int, kb: int):
     k_all = kf + kb
 
     @cuda.jit
-    def density_factor_lambda(x, mf, xb, mb, nf, cf, nb, cb, h, rho0, rho, alpha, lam, err, n_nbrs, gb, pair_grad):
+    def density_factor_lambda(
+        x, mf, xb, mb, nf, cf, nb, cb, h, rho0, rho, alpha, lam, err, n_nbrs, gb, pair_grad, wb, gw, mirror
+    ):
         fill = pair_grad.shape[0] == x.shape[0]
+        field = wb.shape[0] == x.shape[0]
         w0 = w(0.0, h)
         buf = cuda.local.array((DENSITY_ROWS, k_all), f64)
         for i in range(cuda.grid(1), x.shape[0], cuda.gridsize(1)):
-            density_at(
-                i, x, mf, xb, mb, nf, cf, nb, cb, h, rho0, w0, fill, buf, rho, alpha, lam, err, n_nbrs, gb, pair_grad
-            )
+            if field:  # field walls: their own body, so the particle models run exactly as they did
+                field_density_at(
+                    i,
+                    x,
+                    mf,
+                    xb,
+                    mb,
+                    nf,
+                    cf,
+                    nb,
+                    cb,
+                    h,
+                    rho0,
+                    w0,
+                    fill,
+                    buf,
+                    rho,
+                    alpha,
+                    lam,
+                    err,
+                    n_nbrs,
+                    gb,
+                    pair_grad,
+                    wb,
+                    gw,
+                    mirror,
+                )
+            else:
+                density_at(
+                    i,
+                    x,
+                    mf,
+                    xb,
+                    mb,
+                    nf,
+                    cf,
+                    nb,
+                    cb,
+                    h,
+                    rho0,
+                    w0,
+                    fill,
+                    buf,
+                    rho,
+                    alpha,
+                    lam,
+                    err,
+                    n_nbrs,
+                    gb,
+                    pair_grad,
+                )
 
     @cuda.jit
     def divergence_residual(x, v, mf, gb, gvb, nf, cf, pair_grad, h, alpha, n_nbrs, dt, drho, k):
@@ -131,13 +183,15 @@ def passes(kf: int, kb: int):
             )
 
     @cuda.jit
-    def apply_stiffness(x, mf, gb, nf, cf, pair_grad, h, k, dt, v, k_total):
+    def apply_stiffness(x, mf, gb, nf, cf, pair_grad, h, k, dt, v, k_total, mirror):
         buf = cuda.local.array((STIFFNESS_ROWS, kf), f64)
         for i in range(cuda.grid(1), x.shape[0], cuda.gridsize(1)):
-            stiffness_at(i, x, mf, gb, nf, cf, pair_grad, pair_grad.shape[0] == x.shape[0], h, k, dt, buf, v, k_total)
+            stiffness_at(
+                i, x, mf, gb, nf, cf, pair_grad, pair_grad.shape[0] == x.shape[0], h, k, dt, buf, v, k_total, mirror
+            )
 
     @cuda.jit
-    def xsph(x, v, mf, rho, gb, gvb, lam, nf, cf, h, zeta, nu_dt, v_out, drho, disp, pair_grad):
+    def xsph(x, v, mf, rho, gb, gvb, lam, nf, cf, h, zeta, nu_dt, v_out, drho, disp, pair_grad, mirror):
         with_disp = disp.shape[0] == x.shape[0]
         fill = pair_grad.shape[0] == x.shape[0]
         eps = 0.01 * h * h
@@ -167,13 +221,14 @@ def passes(kf: int, kb: int):
                 drho,
                 disp,
                 pair_grad,
+                mirror,
             )
 
     @cuda.jit
-    def pf_global(x, s, mf, gb, nf, cf, h, rho0, lam, a, x_out, lam_sum):
+    def pf_global(x, s, mf, gb, nf, cf, h, rho0, lam, a, x_out, lam_sum, mirror):
         buf = cuda.local.array((PF_GLOBAL_ROWS, kf), f64)
         for k in range(cuda.grid(1), x.shape[0], cuda.gridsize(1)):
-            pf_global_at(k, x, s, mf, gb, nf, cf, h, rho0, lam, a, buf, x_out, lam_sum)
+            pf_global_at(k, x, s, mf, gb, nf, cf, h, rho0, lam, a, buf, x_out, lam_sum, mirror)
 
     @cuda.jit
     def wall_rate(x, xb, mb, vb, nb, cb, h, gvb):

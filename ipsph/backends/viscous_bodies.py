@@ -1,14 +1,120 @@
-"""Per-particle bodies of the implicit viscosity (method.md section 10), written once like
-`bodies`: plain functions of one particle i that gather its neighbours into `buf` and write index i
-only, inlined by the CPU launchers (`cpu_passes`) and compiled as device functions by the CUDA ones
-(`cuda_passes`)."""
+"""Per-particle bodies of the viscosity passes, written once like `bodies`: the explicit pass (XSPH
+and SPlisHSPlasH's Standard viscosity, `viscosity_at`) and the implicit viscosity (method.md
+section 10). Plain functions of one particle i that gather its neighbours into `buf` and write
+index i only, inlined by the CPU launchers (`cpu_passes`) and compiled as device functions by the
+CUDA ones (`cuda_passes`)."""
 
 import math
 
 from numba import njit
 
-from .kernels import grad_w_factor
-from .bodies import C0, C1, C2, C3, DX, DY, DZ, FAST, _gather_diff, _gather_xf
+from .bodies import C0, C1, C2, C3, C4, C5, DX, DY, DZ, FAST, _gather_diff, _gather_rate_f, _gather_xf
+from .kernels import grad_w_factor, w
+
+
+# -- the explicit pass: XSPH and Standard viscosity ---------------------------------------------
+@njit(inline="always", fastmath=FAST)
+def _viscosity_sums(i, n_f, buf, h, eps, mf, standard, fill, pair_grad):
+    """viscosity_at's neighbour loop; with `fill` (a constant at each call site) it also
+    stores pair_grad[i, :, k] = mf grad W_ij."""
+    a0 = a1 = a2 = 0.0  # XSPH: sum_j (1/rho_j) v_ij W_ij
+    s0 = s1 = s2 = 0.0  # Standard viscosity: sum_j (1/rho_j) (v_ij . x_ij) / (r^2 + eps) grad W_ij
+    p0 = p1 = p2 = 0.0  # PF displacement: sum_j (lam_i + lam_j) grad W_ij
+    dr = 0.0  # sum_j v_ij . grad W_ij
+    for k in range(n_f):
+        d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
+        r2 = d0 * d0 + d1 * d1 + d2 * d2
+        r = math.sqrt(r2)
+        u0, u1, u2 = buf[C1, k], buf[C2, k], buf[C3, k]
+        inv_rho = buf[C4, k]
+        wij = inv_rho * w(r, h)
+        a0 += wij * u0
+        a1 += wij * u1
+        a2 += wij * u2
+        g = grad_w_factor(r, h)
+        ud = u0 * d0 + u1 * d1 + u2 * d2
+        dr += g * ud
+        if standard:  # loop-invariant: LLVM unswitches it, so nu = 0 pays no division
+            sv = inv_rho * ud * g / (r2 + eps)
+            s0 += sv * d0
+            s1 += sv * d1
+            s2 += sv * d2
+        if fill:
+            gm = mf * g
+            pair_grad[i, 0, k] = gm * d0
+            pair_grad[i, 1, k] = gm * d1
+            pair_grad[i, 2, k] = gm * d2
+        gl = buf[C5, k] * g
+        p0 += gl * d0
+        p1 += gl * d1
+        p2 += gl * d2
+    return a0, a1, a2, s0, s1, s2, p0, p1, p2, dr
+
+
+@njit(inline="always", fastmath=FAST)
+def viscosity_at(
+    i,
+    x,
+    v,
+    mf,
+    rho,
+    gb,
+    gvb,
+    lam,
+    nf,
+    cf,
+    h,
+    zeta,
+    nu_dt,
+    eps,
+    standard,
+    with_disp,
+    fill,
+    buf,
+    v_out,
+    drho,
+    disp,
+    pair_grad,
+    mirror,
+):
+    """The viscosity pass for particle i: XSPH filter [SB12] and SPlisHSPlasH's "Standard"
+    viscosity, explicit:
+
+        v_i <- v_i - zeta sum_j (mf / rho_j) (v_i - v_j) W_ij
+                   + 10 nu dt sum_j (mf / rho_j) (v_ij . x_ij) / (r_ij^2 + 0.01 H^2) grad W_ij
+
+    (Monaghan 2005's SPH Laplacian with the 2 (d + 2) = 10 of 3D, as SPlisHSPlasH's
+    Viscosity_Standard without its wall term; nu_dt = nu dt, eps = 0.01 H^2). Walls take no part.
+    By-products of the same neighbour loop:
+        drho_i = D rho_i/Dt of the input velocities (walls through gb_i and gvb_i);
+        disp_i = sum_j mf (lam_i + lam_j) grad W_ij + mirror lam_i gb_i, with `with_disp`: rho0 times
+                 the PF displacement of the multipliers lam (IPSPH's next warm start);
+        pair_grad[i, :, k] = mf grad W_ij, with `fill`.
+    """
+    n_f = _gather_xf(i, x, nf, cf, buf)
+    _gather_rate_f(i, v, nf, n_f, buf)
+    li = lam[i] if with_disp else 0.0
+    for k in range(n_f):
+        j = nf[i, k]
+        buf[C4, k] = 1.0 / rho[j]
+        buf[C5, k] = li + lam[j] if with_disp else 0.0
+    vi0, vi1, vi2 = v[i, 0], v[i, 1], v[i, 2]
+    if fill:  # two copies of the loop, one with the cache's stores (a runtime test inside
+        #       the loop stops LLVM vectorising it)
+        a0, a1, a2, s0, s1, s2, p0, p1, p2, dr = _viscosity_sums(i, n_f, buf, h, eps, mf, standard, True, pair_grad)
+    else:
+        a0, a1, a2, s0, s1, s2, p0, p1, p2, dr = _viscosity_sums(i, n_f, buf, h, eps, mf, standard, False, pair_grad)
+    drho[i] = mf * dr + vi0 * gb[i, 0] + vi1 * gb[i, 1] + vi2 * gb[i, 2] - gvb[i]
+    zm = zeta * mf
+    nm = 10.0 * nu_dt * mf
+    v_out[i, 0] = vi0 - zm * a0 + nm * s0
+    v_out[i, 1] = vi1 - zm * a1 + nm * s1
+    v_out[i, 2] = vi2 - zm * a2 + nm * s2
+    if with_disp:
+        lw = li if mirror == 1.0 else mirror * li
+        disp[i, 0] = mf * p0 + lw * gb[i, 0]
+        disp[i, 1] = mf * p1 + lw * gb[i, 1]
+        disp[i, 2] = mf * p2 + lw * gb[i, 2]
 
 
 # -- the implicit viscosity (method.md section 10) -------------------------------------------------

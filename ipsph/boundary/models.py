@@ -10,8 +10,9 @@ A model provides what every pass needs of the walls, so that no method branches 
   moving wall is the opposite of what the pressure parts applied to the fluid through it
   (`rigid.wall_forces`).
 
-A particle model is one entry of MODELS; a model that is not made of particles (a volume or
-density map) would add its own per-particle bodies to the backends beside the particles'.
+A particle model is one entry of MODELS. The "field" model is not made of particles: it samples
+no wall particles, and `field(scene)` hands the passes every wall as a shape instead
+(`field_walls.FieldWalls`; the per-particle bodies are `backends/field_bodies.py`).
 """
 
 from __future__ import annotations
@@ -41,6 +42,9 @@ class BoundaryModel:
     summary: str
     container_offset_d: float  # outside a container's surface
     obstacle_depth_d: float  # inside an obstacle's or body's surface
+    # the walls' share in the pressure terms, a multiple of the particle's own (Backend.wall_mirror):
+    # 1 = once (Akinci), 2 = mirrored onto the wall (method.md section 11)
+    pressure_mirror: float = 1.0
 
     def offset(self, spec: BoundarySpec, r: float) -> float:
         """How far the layer of `spec` sits behind its surface, away from the fluid (m)."""
@@ -59,6 +63,45 @@ class BoundaryModel:
         """The walls' particles with Akinci's volumes (fitted to `rest_lattice` when given)."""
         return Boundary(x, support, rho0, rest_lattice, spacing, groups, depth)
 
+    def field(self, scene):
+        """The walls as fields: none, the walls are these particles."""
+        return None
+
+    def keep_fluid(self, fluid_x: np.ndarray, scene) -> np.ndarray:
+        """Which sampled fluid particles this model keeps beyond the overlap removal: all."""
+        return np.ones(len(fluid_x), dtype=bool)
+
+
+@dataclass(frozen=True)
+class FieldModel(BoundaryModel):
+    """Walls as shapes (field_walls.FieldWalls): no wall particles; the fluid starts d/2 from
+    every surface, where the calibrated field puts the first layer at rest."""
+
+    def samples(self, spec: BoundarySpec, r: float, *, cache: bool = True) -> np.ndarray:
+        return np.zeros((0, 3))
+
+    def field(self, scene):
+        from .field_walls import FieldWalls
+
+        return FieldWalls(scene)
+
+    def surface_points(self, scene) -> np.ndarray:
+        """Points on every wall surface (the domain's bounds, the settle and the hydrostatic seed
+        read walls as points; the solver never sees them)."""
+        r = scene.particle_radius
+        return np.concatenate([np.zeros((0, 3))] + [boundary_positions(spec, r, 0.0) for spec in scene.boundaries])
+
+    def keep_fluid(self, fluid_x: np.ndarray, scene) -> np.ndarray:
+        """Fluid particles at least (1/2 - FIELD_START_TOL) d from every wall surface (containers
+        and obstacles alike: phi >= d/2, the rest distance of the calibrated field)."""
+        if not len(fluid_x) or not scene.boundaries:
+            return np.ones(len(fluid_x), dtype=bool)
+        return self.field(scene).distance(fluid_x) >= (0.5 - FIELD_START_TOL) * spacing(scene.particle_radius)
+
+
+# A fluid lattice point this close (in d) under d/2 from a field wall still starts (rounding: a
+# container's fluid box whose first layer sits exactly d/2 from the surface keeps it).
+FIELD_START_TOL = 1e-6
 
 MODELS = {
     m.name: m
@@ -76,6 +119,15 @@ MODELS = {
             "obstacles and bodies, which then float too high (a 500 kg/m^3 box 23-31 % submerged)",
             CONTAINER_OFFSET_D,
             CONTAINER_OFFSET_D,
+        ),
+        FieldModel(
+            "field",
+            "no wall particles: every wall and body is a shape whose signed distance and exact kernel "
+            "integral the fluid reads (method.md section 11); the fluid's first layer rests d/2 from the "
+            "surfaces",
+            0.0,
+            0.0,
+            pressure_mirror=2.0,
         ),
     )
 }

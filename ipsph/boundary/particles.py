@@ -216,6 +216,7 @@ class Boundary:
         depth: np.ndarray | None = None,
     ):
         self.x = np.array(x, dtype=np.float64).reshape(-1, 3)  # a copy: moving walls write into it
+        self.field = None  # the walls as fields (boundary.field_walls.FieldWalls) under the "field" model
         self.h = float(support)
         self.rho0 = float(rho0)
         self.v = np.zeros_like(self.x)

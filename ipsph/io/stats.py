@@ -42,6 +42,7 @@ STEP_COLUMNS = {
     "kinetic_energy": (lambda s, n: s.kinetic_energy, "kinetic energy [J]"),
     "dt_clamped": (lambda s, n: s.dt_clamped, "1 when the CFL step fell below time_step.dt_min"),
     "solver_maxed": (lambda s, n: s.solver_maxed, "solves that stopped at their iteration cap"),
+    "wall_projections": (lambda s, n: s.wall_projections, "particles moved back outside a field wall"),
     "ms_step": (lambda s, n: 1000 * s.timings.get("step", 0.0), "wall time of the whole step [ms]"),
     # empty for a phase this method does not have (not a timing of 0 ms)
     **{

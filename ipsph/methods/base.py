@@ -13,7 +13,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field, fields, is_dataclass, replace
 from types import SimpleNamespace
 
-from ..backends import Backend
+from ..backends import Backend, Densities
 from ..boundary import Boundary
 from ..config import Scene
 from .state import ParticleState
@@ -35,6 +35,7 @@ class StepReport:
     density_iterations: int = 0
     viscosity_iterations: int = 0  # implicit viscosity: conjugate-gradient iterations
     solver_maxed: int = 0  # solves that stopped at their iteration cap, unconverged
+    wall_projections: int = 0  # field walls: particles moved back to phi_min outside a surface
     timings: dict[str, float] = field(default_factory=dict)  # seconds per phase
 
 
@@ -82,6 +83,15 @@ def _head(obj, be: Backend, n: int, capacity: int):
     return obj
 
 
+def _densities(obj):
+    """The Densities in a (nested) scratch dataclass."""
+    if isinstance(obj, Densities):
+        yield obj
+    elif is_dataclass(obj):
+        for f in fields(obj):
+            yield from _densities(getattr(obj, f.name))
+
+
 def _arrays(obj):
     """The arrays in a (nested) scratch dataclass."""
     if is_dataclass(obj):
@@ -119,6 +129,10 @@ class Method:
         """`self.data`: the method's scratch, allocated once for the state's capacity and used
         through views of its first n rows (the same arrays when n = capacity: no emitters)."""
         self._scratch = data_cls.allocate(self.be, self.state.capacity)
+        if self.boundary.field is not None:  # field walls: the densities' wb, gw get their rows
+            for dens in _densities(self._scratch):
+                full = Densities.allocate(self.be, self.state.capacity, field=True)
+                dens.wb, dens.gw, dens.ws = full.wb, full.gw, full.ws
         implicit = self.scene.viscosity_model == "implicit" and self.scene.kinematic_viscosity_m2s > 0.0
         self._visc_scratch = ViscosityScratch.allocate(self.be, self.state.capacity) if implicit else None
         self.resize(self.state.n)
@@ -189,6 +203,23 @@ class Method:
         """Moving walls to where they are at the end of this step (before the neighbour search that sees them)."""
         if self.walls is not None:
             self.walls.move(dt)
+
+    def wall_pressure(self, dt: float, v, dens) -> None:
+        """Field walls: the hydrostatic increment of the mirrored wall pressure, once per step on v
+        (the walls' pressure is the particle's plus rho0 |g.n| times the wall's mean depth below it)."""
+        if self.boundary.field is not None:
+            self.be.wall_pressure(dens, self.g, self.fluid.rho0, dt, v)
+
+    def keep_outside_walls(self) -> None:
+        """Field walls: every particle at least phi_min outside every surface, its velocity into the
+        wall removed (brief section 8); the count goes to the step report. No-op with wall particles."""
+        field = self.boundary.field
+        if field is None:
+            return
+        st = self.state
+        if getattr(self, "_moved", None) is None or self._moved.shape[0] != st.n:
+            self._moved = self.be.zeros(st.n, dtype="int32")
+        self.report.wall_projections += self.be.wall_project(st.x, st.v, field, self._moved)
 
     def wall_rate(self, x, dens) -> None:
         """The moving walls' part of D rho/Dt at these positions (dens.gvb; stays 0 for static walls)."""

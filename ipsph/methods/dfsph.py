@@ -75,6 +75,7 @@ class DFSPH(Method):
                 rep.solver_maxed += maxed
         with self.timer("xsph"):
             be.accelerate(st.v, dt, self.g)
+            self.wall_pressure(dt, st.v, d.dens)
             be.viscosity(
                 st.x,
                 st.v,
@@ -101,6 +102,7 @@ class DFSPH(Method):
         self.wall_reaction(dt, k=(st.k_div, st.k_dens) if cfg.divergence.enabled else (st.k_dens,))
         be.axpy(st.x, dt, st.v)
         self.move_walls(dt)
+        self.keep_outside_walls()
         self.prepare()
         return self.end(dt, d.dens)
 

@@ -63,10 +63,12 @@ class ProjectiveMethod(Method):
         perm = self.search.update(st.x)
         be.densities(be.take(st.x, perm), fl.mf, self.boundary, self.lists, fl.h, fl.rho0, d.dens, be.NO_PAIRS)
         for a in d.dens.arrays():
-            be.untake(a, perm)
+            if a.shape[0] == perm.shape[0]:  # the field walls' arrays have no rows without field walls
+                be.untake(a, perm)
 
     def inertial_target(self, dt: float):
         """s = x + dt v + dt^2 g becomes the current position, neighbours at s; returns x^n in the new order."""
+        self.wall_pressure(dt, self.state.v, self.data.dens)  # dens: the last step's, at these positions
         self.be.advance(self.state.x, self.state.v, dt, self.g, self.data.x_old)
         self.move_walls(dt)  # the projection sees moving walls where they are at t + dt
         (x_old,) = self.neighbour_search(self.data.x_old)
@@ -107,6 +109,7 @@ class ProjectiveMethod(Method):
         d(Lam) in it (IPSPH's next warm start). With `fill_pairs` the pass also fills the pair
         cache and returns it, for a solve that follows at these positions (IPSPH's)."""
         be, st, d, fl = self.be, self.state, self.data, self.fluid
+        self.keep_outside_walls()
         be.displacement_velocity(st.x, x_old, dt, st.v)
         self.wall_rate(st.x, d.dens)
         pairs = be.viscosity(

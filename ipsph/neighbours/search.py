@@ -145,7 +145,7 @@ class NeighbourSearch:
         self.h = float(support)
         self.boundary = boundary  # has `.x` and `.reorder(order)`; resorted here when the grid changes
         self.k_fluid = k_fluid
-        self.k_boundary = k_boundary
+        self.k_boundary = k_boundary if boundary.n else 0  # no wall particles (field walls): no wall lists
         self.grid: Grid | None = None
         self.wall_start = self.wall_cand = None  # per-cell wall candidates (wall_candidates)
         self.lists: NeighbourLists | None = None

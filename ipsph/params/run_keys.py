@@ -164,7 +164,10 @@ KEYS: tuple[Param, ...] = (
         "one layer of Akinci particles 0.6 d inside every obstacle and body, so that the fluid's "
         "volume meets their surface and a floating body displaces its own volume (Archimedes); "
         "akinci-surface: the layer 0.1 d behind every surface, where bodies float too high by about "
-        "d/2. Containers are the same in both (their layer 0.1 d outside).",
+        "d/2. Containers are the same in both (their layer 0.1 d outside). field (experimental, CPU, "
+        "static walls): no wall particles, every wall a shape whose signed distance and exact kernel "
+        "integral the fluid reads (docs/method.md section 11); fluid at rest does not yet stay at rest "
+        "against it, so it is not for production runs.",
         "boundary_model",
         choices=BOUNDARY_MODELS,
     ),

@@ -209,6 +209,8 @@ def _sample(scene: Scene):
         kept, removed = sampling.remove_overlaps(
             fluid_x, boundary_x, sampling.default_overlap_distance(r), boundaries=scene.boundaries, radius=r
         )
+        kept &= model_of(scene).keep_fluid(fluid_x, scene)  # field walls: d/2 from every surface
+        removed = int(len(fluid_x) - kept.sum())
         if any(spec.dynamic for spec in scene.boundaries):  # a wider gap around bodies (BODY_GAP_D)
             from ..boundary.sampling import body_gap_mask
 

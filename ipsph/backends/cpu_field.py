@@ -1,0 +1,50 @@
+"""The CPU launchers of the field walls' bodies (`field_bodies`): prange over the particles."""
+
+import numpy as np
+from numba import njit, prange
+
+from . import field_bodies, field_grid, kernels
+from . import wall_field as field_maths
+from ._cache import depend_on
+from .field_bodies import object_field, wall_field_at, wall_pressure_at, wall_project_at
+from .kernels import FASTMATH as FAST
+
+
+@njit(parallel=True, fastmath=FAST, cache=True)
+def wall_field(x, h, rho0, delta_h, objects, wb, gw, gvb, ws):
+    """field_bodies.wall_field_at for every particle."""
+    for i in prange(x.shape[0]):
+        wall_field_at(i, x, h, rho0, delta_h, objects, wb, gw, gvb, ws)
+
+
+@njit(parallel=True, fastmath=FAST, cache=True)
+def wall_pressure(gw, ws, g, rho0, dt, v):
+    """field_bodies.wall_pressure_at for every particle."""
+    for i in prange(v.shape[0]):
+        wall_pressure_at(i, gw, ws, g[0], g[1], g[2], rho0, dt, v)
+
+
+@njit(parallel=True, fastmath=FAST, cache=True)
+def wall_project(x, v, h, phi_min, objects, moved):
+    """field_bodies.wall_project_at for every particle; returns how many were moved."""
+    for i in prange(x.shape[0]):
+        wall_project_at(i, x, v, h, phi_min, objects, moved)
+    return np.count_nonzero(moved)
+
+
+@njit(parallel=True, cache=True)
+def min_distance(p, h, objects, out):
+    """out_i = min over the objects of phi_k(p_i) (host queries: sampling, checks)."""
+    kind = objects[0]
+    for i in prange(p.shape[0]):
+        best = np.inf
+        for k in range(kind.shape[0]):
+            f = object_field(k, p[i, 0], p[i, 1], p[i, 2], h, objects)[0]
+            best = min(best, f)
+        out[i] = best
+
+
+depend_on(
+    (wall_field, wall_pressure, wall_project, min_distance),
+    (__file__, field_bodies.__file__, field_maths.__file__, field_grid.__file__, kernels.__file__),
+)

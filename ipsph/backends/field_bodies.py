@@ -1,0 +1,235 @@
+"""Per-particle bodies of field walls (wall model "field", method.md section 11): the walls seen as
+geometry, one evaluation per fluid particle and wall object, no wall particles.
+
+Each wall object k is a shape in its own frame (a box of half extents e_k, a ball of radius R_k)
+placed by a rotation R_k and a position c_k: x_l = R_k^T (x - c_k). Its solid is the shape (an
+obstacle or a body, sign +1) or the shape's complement (a container, sign -1, fluid inside).
+`wall_field.*_field` gives the signed distance phi (positive in the fluid) and the kernel integral
+I of the shape's solid with their gradients; solids of different objects do not overlap, so the
+integrals add, and the walls' density and its gradient follow from the sum (brief section 7):
+
+    I_i = sum_k I_k(x_i),   rho_b,i = rho0 Lambda(I_i),   gb_i = rho0 Lambda'(I_i) sum_k grad I_k
+    gvb_i = rho0 Lambda'(I_i) sum_k grad I_k . v_k(x_i),   v_k(x) = u_k + omega_k x (x - c_k)
+
+(Lambda the calibrated reading, `wall_field.wall_reading`). rho_b and gb take the place of the
+wall particles' sum_b m_b W_ib and sum_b m_b grad W_ib in `bodies.density_at`, so every later pass
+reads the walls through gb and gvb as it does with particles.
+
+A mesh is a GRID object: its (phi, I) grid in the body frame (`field_grid`, built by
+`boundary.mesh_field`), grid number size_k[0] in the header `hdr` and the shared `pool`.
+
+The objects travel as one tuple of arrays, `objects` (`boundary.field_walls.FieldWalls.arrays`):
+(kind, sign, rot, pos, size, reach, vel, omega, qtab, otab, hdr, pool). `reach` culls: a box or
+ball is skipped when x_l lies farther than reach_k outside its bounding box (obstacles), or deeper
+than reach_k inside it (containers), where I_k = 0; a grid culls itself (I = 0 off the grid).
+"""
+
+import math
+
+from numba import njit
+
+from .bodies import density_core, density_store
+from .field_grid import grid_distance, grid_kernel_integral
+from .kernels import FASTMATH
+from .wall_field import box_field, half_density, sphere_field, wall_reading
+
+FAST = FASTMATH
+
+BOX, SPHERE, GRID = 0, 1, 2  # object kinds (boundary.field_walls.KINDS names them)
+# Field walls have no neighbours to count: a wall reading of Lambda counts as FIELD_NEIGHBOURS Lambda
+# (a flat face reads tau0 = 0.1497 at the first layer, the ~9 wall particles of an Akinci face grid).
+FIELD_NEIGHBOURS = 60.0
+
+
+@njit(inline="always", fastmath=FAST)
+def _local(k, p0, p1, p2, rot, pos):
+    """x_l = R_k^T (x - c_k) and the offset x - c_k."""
+    d0, d1, d2 = p0 - pos[k, 0], p1 - pos[k, 1], p2 - pos[k, 2]
+    l0 = rot[k, 0, 0] * d0 + rot[k, 1, 0] * d1 + rot[k, 2, 0] * d2
+    l1 = rot[k, 0, 1] * d0 + rot[k, 1, 1] * d1 + rot[k, 2, 1] * d2
+    l2 = rot[k, 0, 2] * d0 + rot[k, 1, 2] * d1 + rot[k, 2, 2] * d2
+    return l0, l1, l2, d0, d1, d2
+
+
+@njit(inline="always", fastmath=FAST)
+def _culled(k, l0, l1, l2, kind, sign, size, reach):
+    """True where object k cannot reach x_l (its I_k is 0 there)."""
+    if kind[k] == GRID:
+        return False
+    if kind[k] == SPHERE:
+        r = math.sqrt(l0 * l0 + l1 * l1 + l2 * l2)
+        out = r - size[k, 0]
+        return out > reach[k] if sign[k] > 0.0 else out < -reach[k]
+    o0, o1, o2 = abs(l0) - size[k, 0], abs(l1) - size[k, 1], abs(l2) - size[k, 2]
+    if sign[k] > 0.0:
+        return o0 > reach[k] or o1 > reach[k] or o2 > reach[k]
+    return o0 < -reach[k] and o1 < -reach[k] and o2 < -reach[k]
+
+
+@njit(inline="always", fastmath=FAST)
+def object_field(k, p0, p1, p2, h, objects):
+    """(phi, grad phi, I, grad I) of object k at the world point p, in world axes; I of its solid
+    (a container's: the complement of its box), phi positive in the fluid."""
+    kind, sign, rot, pos, size, reach, vel, omega, qtab, otab, hdr, pool = objects
+    l0, l1, l2, _, _, _ = _local(k, p0, p1, p2, rot, pos)
+    container = sign[k] < 0.0  # fluid inside the shape, its solid the complement
+    if kind[k] == GRID:
+        g = int(size[k, 0])
+        f, f0, f1, f2 = grid_distance(hdr, g, pool, l0, l1, l2)
+        m, m0, m1, m2 = grid_kernel_integral(hdr, g, pool, l0, l1, l2)
+        if container:
+            f, f0, f1, f2, m, m0, m1, m2 = -f, -f0, -f1, -f2, 1.0 - m, -m0, -m1, -m2
+    elif kind[k] == SPHERE:
+        f, f0, f1, f2, m, m0, m1, m2 = sphere_field(l0, l1, l2, size[k, 0], h, container)
+    else:
+        f, f0, f1, f2, m, m0, m1, m2 = box_field(
+            l0, l1, l2, size[k, 0], size[k, 1], size[k, 2], h, container, qtab, otab
+        )
+    # back to world axes: g_world = R_k g_local
+    w0 = rot[k, 0, 0] * f0 + rot[k, 0, 1] * f1 + rot[k, 0, 2] * f2
+    w1 = rot[k, 1, 0] * f0 + rot[k, 1, 1] * f1 + rot[k, 1, 2] * f2
+    w2 = rot[k, 2, 0] * f0 + rot[k, 2, 1] * f1 + rot[k, 2, 2] * f2
+    n0 = rot[k, 0, 0] * m0 + rot[k, 0, 1] * m1 + rot[k, 0, 2] * m2
+    n1 = rot[k, 1, 0] * m0 + rot[k, 1, 1] * m1 + rot[k, 1, 2] * m2
+    n2 = rot[k, 2, 0] * m0 + rot[k, 2, 1] * m1 + rot[k, 2, 2] * m2
+    return f, w0, w1, w2, m, n0, n1, n2
+
+
+@njit(inline="always", fastmath=FAST)
+def object_velocity(k, d0, d1, d2, vel, omega):
+    """v_k(x) = u_k + omega_k x (x - c_k), given d = x - c_k."""
+    a0, a1, a2 = omega[k, 0], omega[k, 1], omega[k, 2]
+    return vel[k, 0] + a1 * d2 - a2 * d1, vel[k, 1] + a2 * d0 - a0 * d2, vel[k, 2] + a0 * d1 - a1 * d0
+
+
+@njit(inline="always", fastmath=FAST)
+def wall_field_at(i, x, h, rho0, delta_h, objects, wb, gw, gvb, ws):
+    """The walls' density wb_i = rho0 Lambda(I_i), its gradient gw_i, the moving walls' rate term
+    gvb_i and the mean depth of the wall below i, ws_i = s(psi_i) = H [q + Phi(q) / A(q)],
+    q = (psi_i + delta)/H (brief section 4: where the hydrostatic wall pressure is extrapolated to)."""
+    kind, sign, rot, pos, size, reach, vel, omega, qtab, otab, hdr, pool = objects
+    p0, p1, p2 = x[i, 0], x[i, 1], x[i, 2]
+    m = g0 = g1 = g2 = gv = 0.0
+    for k in range(kind.shape[0]):
+        l0, l1, l2, d0, d1, d2 = _local(k, p0, p1, p2, rot, pos)
+        if _culled(k, l0, l1, l2, kind, sign, size, reach):
+            continue
+        _, _, _, _, mk, n0, n1, n2 = object_field(k, p0, p1, p2, h, objects)
+        m += mk
+        g0 += n0
+        g1 += n1
+        g2 += n2
+        u0, u1, u2 = object_velocity(k, d0, d1, d2, vel, omega)
+        gv += n0 * u0 + n1 * u1 + n2 * u2
+    if m <= 0.0:
+        wb[i] = 0.0
+        gw[i, 0] = gw[i, 1] = gw[i, 2] = 0.0
+        gvb[i] = 0.0
+        ws[i] = 0.0
+        return
+    lam, dlam, q = wall_reading(min(m, 1.0), delta_h)
+    a = half_density(q + delta_h)
+    ws[i] = h * (q + delta_h + lam / a) if a > 0.0 else 0.0
+    s = rho0 * dlam
+    wb[i] = rho0 * lam
+    gw[i, 0] = s * g0
+    gw[i, 1] = s * g1
+    gw[i, 2] = s * g2
+    gvb[i] = s * gv
+
+
+@njit(inline="always", fastmath=FAST)
+def wall_pressure_at(i, gw, ws, g0, g1, g2, rho0, dt, v):
+    """The hydrostatic part of the mirrored wall pressure (brief section 4): the wall's pressure is
+    the particle's plus rho0 |g.n| s below it, n = -gw/|gw| out of the wall, so i gains
+
+        v_i += dt (g . n) (s_i / rho0) gw_i = -dt (g . gw_i) / |gw_i| (s_i / rho0) gw_i
+
+    once per step (static walls; a moving wall's acceleration is not included)."""
+    n2 = gw[i, 0] * gw[i, 0] + gw[i, 1] * gw[i, 1] + gw[i, 2] * gw[i, 2]
+    if n2 <= 0.0:
+        return
+    c = -dt * (g0 * gw[i, 0] + g1 * gw[i, 1] + g2 * gw[i, 2]) / math.sqrt(n2) * ws[i] / rho0
+    v[i, 0] += c * gw[i, 0]
+    v[i, 1] += c * gw[i, 1]
+    v[i, 2] += c * gw[i, 2]
+
+
+@njit(inline="always", fastmath=FAST)
+def wall_project_at(i, x, v, h, phi_min, objects, moved):
+    """Keep particle i at least phi_min outside every wall surface: where phi_k(x_i) < phi_min, move
+    it out along grad phi_k by the difference and remove its velocity towards the wall relative to
+    the wall's (brief section 8, pitfall 3). moved_i = how many objects pushed it (0, 1, ...)."""
+    kind, sign, rot, pos, size, reach, vel, omega, qtab, otab, hdr, pool = objects
+    count = 0
+    for k in range(kind.shape[0]):
+        p0, p1, p2 = x[i, 0], x[i, 1], x[i, 2]
+        l0, l1, l2, d0, d1, d2 = _local(k, p0, p1, p2, rot, pos)
+        if _culled(k, l0, l1, l2, kind, sign, size, reach):
+            continue
+        f, n0, n1, n2, _, _, _, _ = object_field(k, p0, p1, p2, h, objects)
+        if f >= phi_min:
+            continue
+        norm = math.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+        if norm < 1e-12:
+            continue
+        n0, n1, n2 = n0 / norm, n1 / norm, n2 / norm
+        push = phi_min - f
+        x[i, 0] = p0 + push * n0
+        x[i, 1] = p1 + push * n1
+        x[i, 2] = p2 + push * n2
+        u0, u1, u2 = object_velocity(k, d0, d1, d2, vel, omega)
+        vn = (v[i, 0] - u0) * n0 + (v[i, 1] - u1) * n1 + (v[i, 2] - u2) * n2
+        if vn < 0.0:
+            v[i, 0] -= vn * n0
+            v[i, 1] -= vn * n1
+            v[i, 2] -= vn * n2
+        count += 1
+    moved[i] = count
+
+
+@njit(inline="always", fastmath=FAST)
+def field_density_at(
+    i,
+    x,
+    mf,
+    xb,
+    mb,
+    nf,
+    cf,
+    nb,
+    cb,
+    h,
+    rho0,
+    w0,
+    fill,
+    buf,
+    rho,
+    alpha,
+    lam,
+    err,
+    n_nbrs,
+    gb,
+    pair_grad,
+    wb,
+    gw,
+    mirror,
+):
+    """density_at with field walls (field_bodies.wall_field_at: their density wb_i and its gradient
+    gw_i) added to the sums, and the walls' pressure share `mirror` in the factor:
+
+    rho_i  += wb_i;  gb_i += gw_i;  g_i += gw_i;  n_nbrs_i += FIELD_NEIGHBOURS wb_i / rho0
+    alpha_i = 1 / max(|g_i|^2 + (mirror - 1) gb_i . g_i + sum_j |mf grad W_ij|^2, 1e-5)
+              (the pressure passes apply mirror k_i gb_i at the walls: 1 once, 2 mirrored)
+    """
+    rho_i, g0, g1, g2, b0, b1, b2, s2, nn = density_core(i, x, mf, xb, mb, nf, cf, nb, cb, h, w0, fill, buf, pair_grad)
+    rho_i += wb[i]
+    b0 += gw[i, 0]
+    b1 += gw[i, 1]
+    b2 += gw[i, 2]
+    g0 += gw[i, 0]
+    g1 += gw[i, 1]
+    g2 += gw[i, 2]
+    nn += FIELD_NEIGHBOURS * wb[i] / rho0
+    sum_sq = g0 * g0 + g1 * g1 + g2 * g2 + (mirror - 1.0) * (b0 * g0 + b1 * g1 + b2 * g2) + s2
+    density_store(i, rho0, rho_i, sum_sq, nn, b0, b1, b2, rho, alpha, lam, err, n_nbrs, gb)
