@@ -38,7 +38,7 @@ _TYPES = {
     "fields": tuple[str, ...],
 }
 
-_ENUMS = {"simulation.method": Method, "boundary.role": Role}  # choices held as StrEnum members
+ENUMS = {"simulation.method": Method, "boundary.role": Role}  # choices held as StrEnum members
 
 
 def _declared(table: str, skip=(), nested: dict | None = None) -> list:
@@ -58,11 +58,11 @@ def _declared(table: str, skip=(), nested: dict | None = None) -> list:
                 seen.add(owner)
                 rest.append((owner, nested[owner], field(default=nested[owner]())))
             continue
-        kind = _ENUMS.get(p.path) or _TYPES[p.kind]
+        kind = ENUMS.get(p.path) or _TYPES[p.kind]
         if p.required or p.default is None and not p.optional:
             required.append((p.target, kind))
         else:
-            default = _ENUMS[p.path](p.default) if p.path in _ENUMS else p.default
+            default = ENUMS[p.path](p.default) if p.path in ENUMS else p.default
             rest.append((p.target, kind | None if p.optional else kind, field(default=default)))
     return required + rest
 

@@ -49,7 +49,15 @@ VISCOSITY_MODELS = ("xsph", "standard", "implicit")  # simulation.viscosity_mode
 VISCOSITY_WALLS = ("no-slip", "free-slip")  # simulation.viscosity_walls: the implicit model's wall friction
 SETTLE_MODES = ("auto", "on", "off")  # simulation.settle: the pre-pass before t = 0
 BOUNDARY_ROLES = ("container", "obstacle")  # boundary.role: fluid inside the surface, or around it
-MOTION_TYPES = ("static", "constant", "sinusoid", "keyframes")  # boundary.motion.type (ipsph/boundary/motion.py)
+# boundary.motion.type (ipsph/boundary/motion.py) and the [boundary.motion] keys each type takes besides
+# `type`: a scene that gives another is refused, and run.json writes these
+MOTION_KEYS: dict[str, tuple[str, ...]] = {
+    "static": (),
+    "constant": ("velocity", "angular_velocity", "pivot"),
+    "sinusoid": ("axis", "amplitude", "angle_amplitude", "period", "phase_deg", "pivot"),
+    "keyframes": ("keyframes", "pivot"),
+}
+MOTION_TYPES = tuple(MOTION_KEYS)
 OUTPUT_FIELDS = ("velocity", "density", "pressure", "mass", "id")
 # render.view: direction from the focal point to the camera, and the view-up vector (y is up)
 RENDER_VIEWS: dict[str, tuple[tuple[float, float, float], tuple[float, float, float]]] = {
