@@ -339,7 +339,7 @@ def test_stats_leave_out_the_phases_a_method_lacks_and_errors_are_not_negative(t
         if phase in absent:
             assert np.all(np.isnan(col)), phase  # empty, not a timing of 0 ms
         else:
-            assert np.all(np.isfinite(col)) and np.all(col >= 0), phase
+            assert np.all(np.isfinite(col)) and col.sum() > 0, phase  # a phase that ran took time
     # the error is max(rho/rho0 - 1, 0) per particle, so it cannot be negative by construction; what
     # can fail: the worst particle is at least the mean, and the collapsing column is compressed
     # somewhere within its first 0.08 s
