@@ -82,12 +82,7 @@ def test_stock_splishsplash_scenes_run_unchanged(tmp_path, scene, count):
     assert run["method"] == "dfsph"
 
 
-def test_renders_during_a_run(tmp_path):
-    from ipsph.post.render import gl_available
-
-    ok, why = gl_available()
-    if not ok:
-        pytest.skip(f"no offscreen GL here: {why}")
+def test_renders_during_a_run(gl, tmp_path):
     res = ipsph("run", "-o", tmp_path / "out", "--end-time", 0.08)
     assert res.returncode == 0, res.stderr
     pngs = sorted((tmp_path / "out" / "renders").glob("*.png"))

@@ -32,13 +32,6 @@ from ipsph.post.render import (
 SMALL = RenderConfig(width=320, height=180)
 
 
-@pytest.fixture(scope="session")
-def gl():
-    ok, reason = gl_available()
-    if not ok:
-        pytest.skip(reason)
-
-
 def make_output_folder(out: Path, n_frames: int = 3, r: float = 0.02) -> Path:
     """A synthetic, solver-free output folder: a column of fluid sliding right in a box."""
     import pyvista as pv

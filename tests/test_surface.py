@@ -234,15 +234,6 @@ def test_pvd_lists_surfaces_as_part_2_and_resume_drops_the_later_ones(tmp_path):
     assert PvdSeries.load(tmp_path / "run.pvd").surfaces == {0.0: surface_file(0)}
 
 
-@pytest.fixture(scope="module")
-def gl():
-    from ipsph.post.render import gl_available
-
-    ok, reason = gl_available()
-    if not ok:
-        pytest.skip(reason)
-
-
 def test_surface_renders_show_the_mesh_with_the_walls(gl, dam_break, tmp_path):
     import imageio.v3 as iio
 
