@@ -133,6 +133,9 @@ def test_overwrite_removes_everything_the_earlier_run_wrote(tmp_path, capsys):
     (out / "renders").mkdir()
     (out / "renders" / "frame_000003.png").write_bytes(b"an old render")
     (out / "video.mp4").write_bytes(b"an old video")  # what `ipsph render OUT --video` writes
+    (out / "bodies").mkdir()  # what a scene with moving walls writes
+    (out / "bodies" / "bodies_000003.vtp").write_bytes(b"an old wall")
+    (out / "bodies.csv").write_text("an old table\n")
     assert (out / "checkpoint.npz").is_file() and (out / "frames" / "fluid_000003.vtu").is_file()
     code, err = run_cli(capsys, "-o", out, "--overwrite", "--no-render", "--end-time", 0.04, *COARSE)
     assert code == 0, err

@@ -11,6 +11,7 @@ import os
 import tempfile
 from pathlib import Path
 
+from ..io import RUN_JSON
 from .report import _f, _num, format_table
 from .runs import log
 
@@ -31,7 +32,7 @@ def first_frame(threads: int, timeout: float = 900.0, repeats: int = 1) -> list[
                 out = Path(tmp) / f"out-{cache}-{k}"
                 r = timed_ipsph_run(["--end-time", "0.04", "--no-render"], out, threads, timeout, env)
                 try:  # run.json splits the time: setup (sampling, output folder), compile, the time loop
-                    run_info = json.loads((out / "run.json").read_text())
+                    run_info = json.loads((out / RUN_JSON).read_text())
                 except (OSError, json.JSONDecodeError):
                     run_info = {}
                 secs, code, frames, load = r["seconds"], r["exit_code"], r["frames"], r["load"]
