@@ -17,7 +17,7 @@ from dataclasses import dataclass, field, make_dataclass
 from enum import StrEnum
 from pathlib import Path
 
-from .params import BOUNDARY_ROLES, COURANT, METHOD_NAMES, PARAMS, VISCOUS_STEP, spacing, support
+from .params import BOUNDARY_ROLES, COURANT, METHOD_NAMES, PARAMS, VISCOUS_STEP, auto_dt_max, spacing, support
 from .params import default as D
 
 Vec3 = tuple[float, float, float]
@@ -180,8 +180,8 @@ def _section(name: str, table: str, doc: str, nested: dict | None = None, **meth
 
 
 def _resolved_dt_max(self, particle_radius: float) -> float:
-    """time_step.dt_max, or its auto value 5 ms * r / 0.025 m."""
-    return self.dt_max if self.dt_max is not None else 0.005 * particle_radius / 0.025
+    """time_step.dt_max, or its auto value (params.auto_dt_max)."""
+    return self.dt_max if self.dt_max is not None else auto_dt_max(particle_radius)
 
 
 TimeStepConfig = _section(
@@ -244,7 +244,7 @@ class _Derived:
 
     @property
     def dt_max(self) -> float:
-        """time_step.dt_max, or its auto value (5 ms * r / 0.025 m)."""
+        """time_step.dt_max, or its auto value (params.auto_dt_max)."""
         return self.time_step.resolved_dt_max(self.particle_radius)
 
     @property

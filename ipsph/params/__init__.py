@@ -25,6 +25,7 @@ from typing import Any
 from . import body_keys, flow_keys, output_keys, run_keys
 from .facts import (  # noqa: F401 - re-exported: every module reads its facts from ipsph.params
     AUTO,
+    AUTO_DT_MAX,
     BACKEND_NAMES,
     BOUNDARY_MODELS,
     BOUNDARY_ROLES,
@@ -44,6 +45,7 @@ from .facts import (  # noqa: F401 - re-exported: every module reads its facts f
     VISCOSITY_MODELS,
     VISCOSITY_WALLS,
     VISCOUS_STEP,
+    auto_dt_max,
     spacing,
     support,
 )

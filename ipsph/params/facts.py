@@ -1,5 +1,5 @@
 """The declared facts that are not scene keys: spacing and support in particle radii, the CFL
-constants, the memory budget, the names of methods, backends, phases, fields, views and modes."""
+constants and the auto dt_max, the memory budget, the names of methods, backends, phases, fields, views and modes."""
 
 from __future__ import annotations
 
@@ -14,6 +14,8 @@ COURANT = 0.4
 # eigenvalue of its operator: 59.6 / H^2 on the lattice (power iteration, method.md section 1).
 # The step keeps half of that margin: dt <= H^2 / (VISCOUS_STEP nu).
 VISCOUS_STEP = 60.0
+# time_step.dt_max's auto value: 5 ms at r = 0.025 m, in proportion to r (auto_dt_max)
+AUTO_DT_MAX = "5 ms * r / 0.025 m"
 
 
 def spacing(r: float) -> float:
@@ -24,6 +26,11 @@ def spacing(r: float) -> float:
 def support(r: float) -> float:
     """The kernel support H = 4 r."""
     return SUPPORT_RADII * r
+
+
+def auto_dt_max(r: float) -> float:
+    """time_step.dt_max when left auto: AUTO_DT_MAX."""
+    return 0.005 * r / 0.025
 
 
 BYTES_PER_PARTICLE = 1024  # the solver's memory budget per fluid particle (docs/performance.md)

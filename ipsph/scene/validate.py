@@ -30,7 +30,7 @@ from ..config import (
     TimeStepConfig,
     Transform,
 )
-from ..params import PARAM_BY_PATH, PARAMS, Param, default, spacing
+from ..params import AUTO_DT_MAX, PARAM_BY_PATH, PARAMS, Param, default, spacing
 from ..params.body_keys import MESH_ONLY
 from .text import _fmt, _fmt_vec, _show, _tname
 from .values import (  # noqa: F401 - ENTITIES, ENTITY_TABLE, renamed_error: read from here too
@@ -194,7 +194,7 @@ def _check_sections(ctx: _Ctx, ts: TimeStepConfig, sv: SolverConfig, rd: RenderC
         src = (
             "time_step.dt_max"
             if ts.dt_max is not None
-            else f"time_step.dt_max (auto: 5 ms * r / 0.025 m = {_fmt(dt_max)} s)"
+            else f"time_step.dt_max (auto: {AUTO_DT_MAX} = {_fmt(dt_max)} s)"
         )
         raise ctx.fail("time_step.dt_min", f"{_fmt(ts.dt_min)} s is larger than {src}; lower dt_min or raise dt_max")
     if ts.dt_initial is not None and not ts.dt_min <= ts.dt_initial <= dt_max:
