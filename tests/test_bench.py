@@ -438,15 +438,21 @@ def test_our_workers_keep_the_openmp_default_policy(monkeypatch):
     assert ours_env(2)["OMP_WAIT_POLICY"] == "active"  # a user's choice wins
 
 
-def test_baseline_rows_get_their_own_label_and_a_finer_ratio():
-    """`ipsph bench --baseline DIR`: the other build's rows sit beside ours, with this/baseline ratios."""
+def test_baseline_rows_get_their_own_label_and_a_finer_ratio(tmp_path):
+    """`python -m benchmarks baseline DIR`: the other build's rows sit beside ours, with this/baseline ratios."""
+    from benchmarks import baseline
+
     n = report.normalise
     rows = [n(_ours(10, w), "ours", "ipsph", "S", k) for k, w in enumerate((3.0, 3.1, 3.2))]
     base = [n(_ours(10, w), "ours", "ipsph", "S", k) for k, w in enumerate((3.0, 3.0, 3.1))]
     for r in base:
-        r.update(source="baseline", label=r["label"] + report.BASELINE)
-    (line,) = report.ratio_lines(report.summarise(rows + base, 0.5), "S")
+        r.update(source="baseline", label=r["label"] + baseline.BASELINE)
+    groups = report.summarise(rows + base, 0.5)
+    assert report.ratio_lines(groups, "S") == []  # no peer ran: the bench's own pairs find nothing
+    (line,) = report.ratio_lines(groups, "S", baseline.pairs(["ipsph"]), digits=3)
     assert line.startswith("IPSPH / IPSPH (baseline): wall per simulated second 1.033x")  # 3.1 / 3.0
     assert (
         "; same round 1.000 1.033 1.032, fastest/fastest 1.000x; density error mean 0.020 % vs 0.020 % (within)" in line
     )
+    with pytest.raises(ConfigError, match="not an ipsph source tree"):
+        baseline.check_tree(tmp_path)

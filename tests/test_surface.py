@@ -281,8 +281,8 @@ def test_surface_mode_renders_during_a_run(gl, tmp_path):
     assert len(list((out / "surfaces").glob("*.vtp"))) == 3 == len(list((out / "renders").glob("*.png")))
 
 
-def test_bench_surface_sizes_reports_seconds_and_cpu():
-    from ipsph.bench.surface_cost import sizes_table, surface_seconds
+def test_surface_sizes_study_reports_seconds_and_cpu():
+    from benchmarks.surface_cost import sizes_table, surface_seconds
 
     row = surface_seconds(3000, threads=1, repeats=1, log=lambda m: None)
     assert row["particles"] == 14**3 and row["triangles"] > 0

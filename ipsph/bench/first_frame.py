@@ -12,7 +12,7 @@ import tempfile
 from pathlib import Path
 
 from ..io import RUN_JSON
-from .report import _f, _num, format_table
+from .report import _f, fmt_num, format_table
 from .runs import log
 
 FIRST_FRAME_TARGET_S = {"cold": 25.0, "warm": 3.0}  # on 2 cores
@@ -80,8 +80,8 @@ def first_frame_table(rows: list[dict], markdown: bool, target: dict | float = 5
         for r in group:
             body.append(
                 [f"{cache} (run {r.get('repeat', 0) + 1})"]
-                + [_num(v) for v in cells(r)]
-                + ["yes" if r.get("ok") else f"no (exit {r.get('exit_code')})", _num(r.get("others_cores")), ""]
+                + [fmt_num(v) for v in cells(r)]
+                + ["yes" if r.get("ok") else f"no (exit {r.get('exit_code')})", fmt_num(r.get("others_cores")), ""]
             )
         ok = [r for r in group if r.get("ok")]
         if ok:
@@ -90,8 +90,8 @@ def first_frame_table(rows: list[dict], markdown: bool, target: dict | float = 5
             verdict = "" if goal is None else ("meets" if med[0] <= goal else "misses") + f" {goal:g} s"
             body.append(
                 [f"**{cache}: median of {len(ok)}**" if markdown else f"{cache}: median of {len(ok)}"]
-                + [_num(v) for v in med]
-                + ["", _num(statistics.median(_f(r.get("others_cores")) for r in ok)), verdict]
+                + [fmt_num(v) for v in med]
+                + ["", fmt_num(statistics.median(_f(r.get("others_cores")) for r in ok)), verdict]
             )
     return format_table(
         [
