@@ -39,7 +39,7 @@ STUDIES = (
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m benchmarks")
     add_arguments(p)
-    p.description = __doc__.splitlines()[0]
+    p.description, p.epilog = __doc__.splitlines()[0], None
     p.add_argument("study", choices=STUDIES, help="which study")
     p.add_argument(
         "values",

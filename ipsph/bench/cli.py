@@ -41,6 +41,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "Benchmark our methods (and SPlisHSPlasH's DFSPH and PF, when pysplishsplash is installed) "
         "on the stock SPlisHSPlasH scenes, interleaved, one process per run."
     )
+    p.epilog = (
+        "Our own studies (the paper's Table 1 and Figure 4, what renders, surfaces, sweeps and moving walls "
+        "cost, another build against this one) run from a clone: python -m benchmarks --help."
+    )
     p.add_argument(
         "--scenes",
         nargs="+",
