@@ -38,6 +38,7 @@ def tiny_run():
     return run_ours("default", "ipsph", 0.02, 1)
 
 
+@pytest.mark.slow
 def test_worker_steps_freely_without_a_frame_grid():
     # the worker writes no frames, so it must not shorten steps to land on them: at 1000 fps a
     # frame-landing run takes at least one step per ms (>= 20 to 0.02 s); dt_max = 4 ms allows 5
@@ -46,6 +47,7 @@ def test_worker_steps_freely_without_a_frame_grid():
     assert r["steps"] < 10, f"{r['steps']} steps: the worker landed on the scene's frame times"
 
 
+@pytest.mark.slow
 def test_worker_returns_sane_json(tiny_run):
     r = tiny_run
     assert r["fluid_particles"] == 3724  # 14 x 19 x 14, documented in ipsph/scene/default.toml
@@ -396,6 +398,7 @@ def test_table1_dragon_mesh_must_exist(tmp_path, capsys):
     assert "--dragon-mesh" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_render_cost_reports_a_time_or_why_not():
     from benchmarks.render_cost import render_cost, table
 

@@ -6,6 +6,9 @@ import pytest
 from ipsph.scene import default_scene_path, load_scene
 from ipsph.simulation import Simulation, sample_scene
 
+# 2 s dam breaks and repeated runs: the full suite only
+pytestmark = pytest.mark.slow
+
 
 def _run(method, end_time, threads=None):
     scene = load_scene(default_scene_path(), [f"simulation.method={method}", f"simulation.end_time={end_time}"])

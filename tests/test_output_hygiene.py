@@ -108,6 +108,7 @@ def test_a_refusal_that_needs_the_sampled_scene_creates_no_folder(tmp_path, caps
     assert not (tmp_path / "a").exists(), f"{why}: left {sorted(p.name for p in tmp_path.rglob('*'))}"
 
 
+@pytest.mark.slow
 def test_a_refused_overwrite_keeps_the_earlier_run(tmp_path, capsys):
     out = tmp_path / "out"
     assert run_cli(capsys, "-o", out, "--no-render", "--end-time", 0.04, *COARSE)[0] == 0
@@ -118,6 +119,7 @@ def test_a_refused_overwrite_keeps_the_earlier_run(tmp_path, capsys):
 
 
 # -- --overwrite clears what was written before -----------------------------------------------------
+@pytest.mark.slow
 def test_overwrite_removes_everything_the_earlier_run_wrote(tmp_path, capsys):
     from ipsph.post.plots import plot_runs
 
@@ -156,6 +158,7 @@ def test_overwrite_removes_everything_the_earlier_run_wrote(tmp_path, capsys):
 
 
 # -- --resume renders what has no render ------------------------------------------------------------
+@pytest.mark.slow
 def test_resume_renders_the_earlier_frames_that_have_no_render(tmp_path, capsys, gl):
     out = tmp_path / "out"
     assert (
@@ -186,6 +189,7 @@ def test_resume_renders_the_earlier_frames_that_have_no_render(tmp_path, capsys,
 
 
 # -- Ctrl-C ----------------------------------------------------------------------------------------
+@pytest.mark.slow
 def test_ctrl_c_prints_one_line_and_no_traceback(tmp_path, gl):
     """A terminal's Ctrl-C signals the whole process group: the run and its render process."""
     out = tmp_path / "out"
@@ -219,6 +223,7 @@ def test_ctrl_c_prints_one_line_and_no_traceback(tmp_path, gl):
     assert rendered == frames if not note else int(note[0].split()[2]) == frames - rendered, err
 
 
+@pytest.mark.slow
 def test_the_render_process_does_not_outlive_a_killed_run(tmp_path, gl):
     """It ignores SIGINT (the run decides), so a run killed outright (SIGKILL) must not leave it behind."""
     import psutil
@@ -283,6 +288,7 @@ def test_a_run_of_hours_is_announced_and_needs_yes_off_a_terminal(tmp_path, caps
     assert said == []
 
 
+@pytest.mark.slow
 def test_progress_lines_reach_a_log_file(tmp_path, capsys, monkeypatch):
     from ipsph.run import folder
 
@@ -299,6 +305,7 @@ def test_progress_lines_reach_a_log_file(tmp_path, capsys, monkeypatch):
 
 
 # -- the summary, and the stats a method writes ----------------------------------------------------
+@pytest.mark.slow
 def test_the_summary_splits_the_wall_time(tmp_path, capsys):
     out = tmp_path / "out"
     code, err = run_cli(capsys, "-o", out, "--no-render", "--end-time", 0.08, *COARSE)
@@ -328,6 +335,7 @@ def test_the_summary_splits_the_wall_time(tmp_path, capsys):
         ("dfsph", ("solvePDConstraints", "viscositySolve")),
     ],
 )
+@pytest.mark.slow
 def test_stats_leave_out_the_phases_a_method_lacks_and_errors_are_not_negative(tmp_path, capsys, method, absent):
     import numpy as np
     from ipsph.io.stats import read_stats
