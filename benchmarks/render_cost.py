@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ipsph.bench import overhead
+from . import overhead
 
 
 def _block(n: int):
@@ -57,11 +57,9 @@ def render_cost(n: int, frames: int = 3) -> dict:
             draw, png = [], []
             with FrameRenderer(RenderConfig(view="iso"), bounds, r, (0.0, 3.0), surface, engine=engine) as fr:
                 fr.render(pts, vel, Path(tmp) / "warm.png", time=0.0)  # static layers, JIT, GL warm-up
-                speed = np.linalg.norm(vel, axis=1)
-                frame = fr._splat_frame if engine == "splat" else fr._vtk_frame
                 for k in range(frames):
                     t0 = time.perf_counter()
-                    img = frame(pts, speed, f"t = {k:.3f} s")
+                    img = fr.image(pts, vel, time=float(k))
                     t1 = time.perf_counter()
                     save_png(img, Path(tmp) / f"f{k}.png")
                     draw.append(t1 - t0)

@@ -9,7 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ipsph.bench import report
-from ipsph.bench.report import _int, _num, format_table
+from ipsph.bench.report import fmt_int, fmt_num, format_table
 from ipsph.bench.runs import PEER_METHODS, interleaved
 from ipsph.bench.scenes import PIPELINES, pipeline_path, resolve_scene
 from ipsph.errors import ConfigError
@@ -54,16 +54,16 @@ TABLE1_HEADERS = [
 def _table1_row(scene: str, label: str, r: dict) -> list[str]:
     ph = r.get("phases_mean") or {}
     return [
-        f"{scene} ({_int(r.get('fluid'))})",
+        f"{scene} ({fmt_int(r.get('fluid'))})",
         label,
-        _int(r.get("steps")),
-        _num(ph.get("divergenceSolve")),
-        _num(ph.get("solvePDConstraints")),
-        _num(ph.get("densitySolve")),
-        _num(r.get("ms_step_mean")),
-        _num(r.get("wall_per_sim")),
-        _num(r.get("err_mean"), "{:.3f}"),
-        _num(r.get("err_worst"), "{:.3f}"),
+        fmt_int(r.get("steps")),
+        fmt_num(ph.get("divergenceSolve")),
+        fmt_num(ph.get("solvePDConstraints")),
+        fmt_num(ph.get("densitySolve")),
+        fmt_num(r.get("ms_step_mean")),
+        fmt_num(r.get("wall_per_sim")),
+        fmt_num(r.get("err_mean"), "{:.3f}"),
+        fmt_num(r.get("err_worst"), "{:.3f}"),
     ]
 
 

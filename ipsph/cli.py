@@ -188,7 +188,9 @@ def _render(args) -> int:
     from .errors import InputError
     from .post.render import gl_available, render_output
 
-    if not (args.out / "run.pvd").exists():
+    from .io import RUN_PVD
+
+    if not (args.out / RUN_PVD).exists():
         raise InputError(
             f"{args.out} (resolved {args.out.resolve()}) holds no run.pvd: give the output folder of `ipsph run`"
         )

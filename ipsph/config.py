@@ -17,7 +17,7 @@ from dataclasses import dataclass, field, make_dataclass
 from enum import StrEnum
 from pathlib import Path
 
-from .params import BOUNDARY_ROLES, COURANT, METHOD_NAMES, PARAMS, VISCOUS_STEP, spacing, support
+from .params import BOUNDARY_ROLES, COURANT, METHOD_NAMES, PARAMS, VISCOUS_STEP, auto_dt_max, spacing, support
 from .params import default as D
 
 Vec3 = tuple[float, float, float]
@@ -38,7 +38,7 @@ _TYPES = {
     "fields": tuple[str, ...],
 }
 
-_ENUMS = {"simulation.method": Method, "boundary.role": Role}  # choices held as StrEnum members
+ENUMS = {"simulation.method": Method, "boundary.role": Role}  # choices held as StrEnum members
 
 
 def _declared(table: str, skip=(), nested: dict | None = None) -> list:
@@ -58,11 +58,11 @@ def _declared(table: str, skip=(), nested: dict | None = None) -> list:
                 seen.add(owner)
                 rest.append((owner, nested[owner], field(default=nested[owner]())))
             continue
-        kind = _ENUMS.get(p.path) or _TYPES[p.kind]
+        kind = ENUMS.get(p.path) or _TYPES[p.kind]
         if p.required or p.default is None and not p.optional:
             required.append((p.target, kind))
         else:
-            default = _ENUMS[p.path](p.default) if p.path in _ENUMS else p.default
+            default = ENUMS[p.path](p.default) if p.path in ENUMS else p.default
             rest.append((p.target, kind | None if p.optional else kind, field(default=default)))
     return required + rest
 
@@ -180,8 +180,8 @@ def _section(name: str, table: str, doc: str, nested: dict | None = None, **meth
 
 
 def _resolved_dt_max(self, particle_radius: float) -> float:
-    """time_step.dt_max, or its auto value 5 ms * r / 0.025 m."""
-    return self.dt_max if self.dt_max is not None else 0.005 * particle_radius / 0.025
+    """time_step.dt_max, or its auto value (params.auto_dt_max)."""
+    return self.dt_max if self.dt_max is not None else auto_dt_max(particle_radius)
 
 
 TimeStepConfig = _section(
@@ -244,7 +244,7 @@ class _Derived:
 
     @property
     def dt_max(self) -> float:
-        """time_step.dt_max, or its auto value (5 ms * r / 0.025 m)."""
+        """time_step.dt_max, or its auto value (params.auto_dt_max)."""
         return self.time_step.resolved_dt_max(self.particle_radius)
 
     @property

@@ -88,3 +88,18 @@ def test_only_the_planned_modules_lie_loose():
     rooms = {p.name for p in PACKAGE.iterdir() if p.is_dir() and (p / "__init__.py").exists()}
     for room in rooms | loose:
         _layer(room)
+
+
+def test_the_studies_use_only_public_helpers_of_the_package():
+    """benchmarks/ (not installed) builds on ipsph as a user would: no `_private` module or name."""
+    private = []
+    for path in (PACKAGE.parent / "benchmarks").glob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("ipsph"):
+                names = node.module.split(".") + [a.name for a in node.names]
+            elif isinstance(node, ast.Import):
+                names = [part for a in node.names if a.name.startswith("ipsph") for part in a.name.split(".")]
+            else:
+                continue
+            private += [f"{path.name}: {n}" for n in names if n.startswith("_")]
+    assert private == [], private

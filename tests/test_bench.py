@@ -38,6 +38,7 @@ def tiny_run():
     return run_ours("default", "ipsph", 0.02, 1)
 
 
+@pytest.mark.slow
 def test_worker_steps_freely_without_a_frame_grid():
     # the worker writes no frames, so it must not shorten steps to land on them: at 1000 fps a
     # frame-landing run takes at least one step per ms (>= 20 to 0.02 s); dt_max = 4 ms allows 5
@@ -46,6 +47,7 @@ def test_worker_steps_freely_without_a_frame_grid():
     assert r["steps"] < 10, f"{r['steps']} steps: the worker landed on the scene's frame times"
 
 
+@pytest.mark.slow
 def test_worker_returns_sane_json(tiny_run):
     r = tiny_run
     assert r["fluid_particles"] == 3724  # 14 x 19 x 14, documented in ipsph/scene/default.toml
@@ -396,6 +398,7 @@ def test_table1_dragon_mesh_must_exist(tmp_path, capsys):
     assert "--dragon-mesh" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_render_cost_reports_a_time_or_why_not():
     from benchmarks.render_cost import render_cost, table
 
@@ -438,15 +441,21 @@ def test_our_workers_keep_the_openmp_default_policy(monkeypatch):
     assert ours_env(2)["OMP_WAIT_POLICY"] == "active"  # a user's choice wins
 
 
-def test_baseline_rows_get_their_own_label_and_a_finer_ratio():
-    """`ipsph bench --baseline DIR`: the other build's rows sit beside ours, with this/baseline ratios."""
+def test_baseline_rows_get_their_own_label_and_a_finer_ratio(tmp_path):
+    """`python -m benchmarks baseline DIR`: the other build's rows sit beside ours, with this/baseline ratios."""
+    from benchmarks import baseline
+
     n = report.normalise
     rows = [n(_ours(10, w), "ours", "ipsph", "S", k) for k, w in enumerate((3.0, 3.1, 3.2))]
     base = [n(_ours(10, w), "ours", "ipsph", "S", k) for k, w in enumerate((3.0, 3.0, 3.1))]
     for r in base:
-        r.update(source="baseline", label=r["label"] + report.BASELINE)
-    (line,) = report.ratio_lines(report.summarise(rows + base, 0.5), "S")
+        r.update(source="baseline", label=r["label"] + baseline.BASELINE)
+    groups = report.summarise(rows + base, 0.5)
+    assert report.ratio_lines(groups, "S") == []  # no peer ran: the bench's own pairs find nothing
+    (line,) = report.ratio_lines(groups, "S", baseline.pairs(["ipsph"]), digits=3)
     assert line.startswith("IPSPH / IPSPH (baseline): wall per simulated second 1.033x")  # 3.1 / 3.0
     assert (
         "; same round 1.000 1.033 1.032, fastest/fastest 1.000x; density error mean 0.020 % vs 0.020 % (within)" in line
     )
+    with pytest.raises(ConfigError, match="not an ipsph source tree"):
+        baseline.check_tree(tmp_path)

@@ -55,6 +55,7 @@ MOMENTUM = {"dfsph": 1e-6, "ipsph": 2e-5, "pf": 2e-2}
 
 
 @pytest.mark.parametrize("method", sorted(MOMENTUM))
+@pytest.mark.slow
 def test_fluid_plus_body_conserve_linear_momentum(method):
     sim = Simulation.from_scene(_collision(method))
     body = sim.walls.bodies[0]
@@ -70,6 +71,7 @@ def test_fluid_plus_body_conserve_linear_momentum(method):
     assert worst[0] < MOMENTUM[method], worst[0]
 
 
+@pytest.mark.slow
 def test_a_dropped_body_lands_on_the_floor_and_rests_without_tunnelling():
     """Contact with a static wall: a box falls 0.2 m onto the tank floor (no fluid beneath it), at
     2 m/s, and comes to rest on it: its particles stay above the floor's and end in the contact band
@@ -132,6 +134,7 @@ def _two_crates() -> dict:
     }
 
 
+@pytest.mark.slow
 def test_a_light_crate_floats_a_heavy_one_sinks_and_neither_fills_with_fluid():
     """Archimedes, qualitatively (the quantitative draft is not met yet: see method.md section 8):
     the 500 kg/m^3 crate stays at the surface, the 2000 kg/m^3 one goes down to the floor, no fluid

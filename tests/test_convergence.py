@@ -15,6 +15,9 @@ import pytest
 from ipsph.scene import scene_from_dict
 from ipsph.simulation import Simulation, sample_scene
 
+# runs at several time steps: the full suite only
+pytestmark = pytest.mark.slow
+
 G = 9.81
 T = 0.24  # s: a whole number of steps at every dt below
 V0 = 1.5  # m/s upwards

@@ -106,6 +106,7 @@ def results(tmp_path_factory):
 
 
 @pytest.mark.parametrize("method", ["ipsph", "pf", "dfsph"])
+@pytest.mark.slow
 def test_float64_follows_the_cpu_backend(results, method):
     rows = results["methods"][method]
     assert len(rows) == 10
@@ -119,6 +120,7 @@ def test_float64_follows_the_cpu_backend(results, method):
 
 
 @pytest.mark.parametrize("method", ["ipsph", "pf", "dfsph"])
+@pytest.mark.slow
 def test_emitters_and_sinks_follow_the_cpu_backend(results, method):
     """Emission (concat onto the state), the sink's compaction (take of fewer rows) and the
     scratch's views of the active rows (head) on the device: per step the same counts and ids as
@@ -136,6 +138,7 @@ def test_emitters_and_sinks_follow_the_cpu_backend(results, method):
 
 
 @pytest.mark.parametrize("method", ["ipsph", "pf", "dfsph"])
+@pytest.mark.slow
 def test_moving_walls_and_a_rigid_body_follow_the_cpu_backend(results, method):
     """A paddle on a sinusoid and a floating crate: the moving walls' density-rate term (the
     wall_rate pass, gvb), the walls re-sorted into the grid each step, and the fluid's reaction on
@@ -154,6 +157,7 @@ def test_moving_walls_and_a_rigid_body_follow_the_cpu_backend(results, method):
     assert max(r["crate_force_n"] for r in rows) > 0 and rows[-1]["crate_speed"] > 0
 
 
+@pytest.mark.slow
 def test_float32_within_the_physics_tolerances(results):
     res = results["float32"]
     for step, r in enumerate(res["tank"]):
@@ -172,6 +176,7 @@ def test_float32_within_the_physics_tolerances(results):
     assert res["fall_vx_dev"] <= FREE_FALL_VX
 
 
+@pytest.mark.slow
 def test_device_neighbour_search_matches_the_oracle_and_the_cpu(results):
     r = results["passes"]
     assert r["fluid_vs_oracle"] and r["walls_vs_oracle"], "lists differ from the brute-force oracle"
@@ -180,6 +185,7 @@ def test_device_neighbour_search_matches_the_oracle_and_the_cpu(results):
     assert r["mean_neighbours"] > 10
 
 
+@pytest.mark.slow
 def test_every_pass_and_reduction_matches_the_cpu(results):
     r = results["passes"]
     diffs = r["diffs"]
@@ -205,6 +211,7 @@ def test_every_pass_and_reduction_matches_the_cpu(results):
     assert r["unhealthy"] == [n_half, n_half, -1] and n_half > 0
 
 
+@pytest.mark.slow
 def test_every_kernel_compiles_for_a_gpu(results):
     if "ptx" not in results:
         pytest.skip("NVVM not found: the [cuda] extra's CUDA wheels are not installed (pip install -e '.[cuda]')")
@@ -230,6 +237,7 @@ def test_every_kernel_compiles_for_a_gpu(results):
     assert r["local_bytes"]["density_factor_lambda[64, 48]"] == 6 * 112 * 8
 
 
+@pytest.mark.slow
 def test_bench_backend_cuda_scaling_smoke(results):
     """`ipsph bench --backend cuda --scaling 300`: a GPU row and the CPU's beside it, with every figure."""
     rows = results["bench"]["scaling"]
@@ -287,6 +295,7 @@ box = { min = [0.0, 0.0, 0.0], max = [0.3, 0.6, 0.3] }
 """
 
 
+@pytest.mark.slow
 def test_ipsph_run_backend_cuda_end_to_end_and_resume(tmp_path):
     """Every output of `ipsph run` with --backend cuda, and a resume that continues exactly."""
     from ipsph.io import vtu
@@ -376,6 +385,7 @@ def test_ipsph_run_backend_cuda_end_to_end_and_resume(tmp_path):
     assert len(pngs) == 3 and all(p.stat().st_size > 1000 for p in pngs)
 
 
+@pytest.mark.slow
 def test_backend_cuda_without_a_gpu_exits_2_naming_what_is_missing(tmp_path):
     scene = tmp_path / "tiny.toml"
     scene.write_text(TINY)

@@ -63,6 +63,7 @@ def tiny_run(tmp_path_factory):
     return folder
 
 
+@pytest.mark.slow
 def test_output_format_snippets_run(tiny_run, monkeypatch, capsys):
     monkeypatch.chdir(tiny_run)
     run_blocks("output-format.md")

@@ -49,6 +49,7 @@ def jet(method="ipsph", gravity=(0.0, 0.0, 0.0), sink=True, **emitter):
     return scene_from_dict(d)
 
 
+@pytest.mark.slow
 def test_emitted_mass_is_rate_times_time_and_leaves_at_the_requested_velocity():
     """Mass rate rho0 * A * v (A: 15 particles of (2r)^2): at every step the emitted mass is the
     rate times the time since start_time, to within one layer (a layer is placed at the first step
@@ -80,6 +81,7 @@ def test_emitted_mass_is_rate_times_time_and_leaves_at_the_requested_velocity():
     assert sim.flow.late_layers == 0
 
 
+@pytest.mark.slow
 def test_a_sink_removes_what_enters_it_and_ids_are_never_reused():
     """Every particle that crossed into the sink is gone at the end of that step; the removed count
     adds up; every id is unique, and an id once removed never comes back (new ones are fresh)."""
@@ -104,6 +106,7 @@ def test_a_sink_removes_what_enters_it_and_ids_are_never_reused():
 
 
 @pytest.mark.parametrize("method", ["pf", "dfsph"])
+@pytest.mark.slow
 def test_every_method_steps_a_varying_count(method):
     """PF and DFSPH (whose step starts from the last densities) re-prepare after the count changes:
     densities are finite and near rho0 inside a jet in a gravity-free tank (within 50 %: a thin jet
@@ -117,6 +120,7 @@ def test_every_method_steps_a_varying_count(method):
     assert np.all(np.isfinite(rho)) and np.all(rho > 0.2 * 1000) and np.all(rho < 1.5 * 1000)
 
 
+@pytest.mark.slow
 def test_a_checkpoint_mid_emission_continues_bit_identically(tmp_path):
     """Save between two steps while layers are being emitted and removed; the restored run emits,
     removes and steps exactly as the uninterrupted one (same ids, same bits)."""
@@ -137,6 +141,7 @@ def test_a_checkpoint_mid_emission_continues_bit_identically(tmp_path):
     np.testing.assert_array_equal(a.velocities, b.velocities)
 
 
+@pytest.mark.slow
 def test_run_folder_frames_carry_varying_counts_and_ids(tmp_path):
     """`ipsph run`: every frame's point count is the stats row's particle count at that time, the
     frames' `id` arrays are unique, and run.json carries the totals."""
@@ -240,6 +245,7 @@ def test_capacity_over_max_particles_exits_2_before_allocation(tmp_path, capsys)
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_resume_with_a_later_end_time_plans_the_extra_emission(tmp_path, capsys):
     """`--resume --end-time T2` past the first run's end: the emitters keep going (the capacity is
     re-planned from what the checkpoint holds and what is still due), bit-identically to a run

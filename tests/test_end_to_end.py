@@ -29,6 +29,7 @@ def default_run(tmp_path_factory):
     return out
 
 
+@pytest.mark.slow
 def test_default_scene_writes_a_readable_series(default_run):
     import pyvista as pv
 
@@ -59,6 +60,7 @@ def test_default_scene_writes_a_readable_series(default_run):
     assert np.all(stats["dt"] > 0)
 
 
+@pytest.mark.slow
 def test_pressure_is_physical_in_the_last_frame(default_run):
     m = meshio.read(sorted((default_run / "frames").glob("*.vtu"))[-1])
     p = m.point_data["pressure"]
@@ -72,6 +74,7 @@ def test_pressure_is_physical_in_the_last_frame(default_run):
 
 
 @pytest.mark.parametrize("scene,count", [("DamBreakModel.json", 6859), ("DoubleDamBreak.json", 4732)])
+@pytest.mark.slow
 def test_stock_splishsplash_scenes_run_unchanged(tmp_path, scene, count):
     path = SHARED / "Scenes" / scene
     res = ipsph("run", path, "-o", tmp_path / "out", "--end-time", 0.05, "--no-render")
@@ -82,12 +85,8 @@ def test_stock_splishsplash_scenes_run_unchanged(tmp_path, scene, count):
     assert run["method"] == "dfsph"
 
 
-def test_renders_during_a_run(tmp_path):
-    from ipsph.post.render import gl_available
-
-    ok, why = gl_available()
-    if not ok:
-        pytest.skip(f"no offscreen GL here: {why}")
+@pytest.mark.slow
+def test_renders_during_a_run(gl, tmp_path):
     res = ipsph("run", "-o", tmp_path / "out", "--end-time", 0.08)
     assert res.returncode == 0, res.stderr
     pngs = sorted((tmp_path / "out" / "renders").glob("*.png"))

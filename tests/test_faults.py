@@ -24,6 +24,9 @@ from ipsph.io.stats import read_stats
 from ipsph.scene import default_scene_path, load_scene
 from ipsph.simulation import Simulation, sample_scene
 
+# runs, subprocesses and signals: the full suite only
+pytestmark = pytest.mark.slow
+
 # the default dam break, coarse: 378 fluid particles at r = 0.04 (about 0.05 s of wall time per step)
 SMALL = ["--set", "simulation.particle_radius=0.04"]
 REPO = Path(__file__).resolve().parents[1]

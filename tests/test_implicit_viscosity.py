@@ -174,6 +174,7 @@ def _binned_l2(r, u, exact, edges):
 
 
 @pytest.mark.parametrize("method", ["ipsph", "dfsph"])
+@pytest.mark.slow
 def test_spin_down_of_a_free_cylinder_follows_the_bessel_mode(tmp_path, method):
     nu, radius, rc, u0 = 0.01, 0.005, 0.1, 0.05
     mesh = _cylinder_obj(tmp_path / "disc.obj", rc, 0.0, 0.06, n=128)
@@ -259,6 +260,7 @@ def _couette(r, r1=R1, r2=R2):
 
 
 @pytest.mark.parametrize("nu, t_end", [(10.0, 0.05), (0.1, 0.1)])
+@pytest.mark.slow
 def test_taylor_couette_profile(tmp_path, nu, t_end):
     """Fluid between a fixed outer cylinder and an inner one turning at Omega (a kinematic wall),
     no gravity, free ends (a short axis: the flow does not depend on it), from rest to steady

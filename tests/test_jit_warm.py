@@ -33,6 +33,7 @@ print(json.dumps(used))
 
 
 @pytest.mark.parametrize("method", jit_warm.METHODS)
+@pytest.mark.slow
 def test_the_signature_list_holds_every_kernel_a_method_runs(method):
     """Fails when a kernel is added or its argument types change without `python -m scripts.jit_record`
     (the helper would then compile the wrong thing and the cold start would not gain)."""
@@ -66,6 +67,7 @@ def test_signatures_parse_back_to_numba_types():
             assert all(isinstance(t, Type) for t in types) and [repr(t) for t in types] == sig
 
 
+@pytest.mark.slow
 def test_the_helper_fills_an_empty_cache_so_the_run_loads_instead_of_compiling(tmp_path):
     """The helper compiles from the END of the list: with LIMIT 1 it writes the method's last kernel
     (a small one) into the (empty) cache; a fresh process then finds it there (no compile event)."""

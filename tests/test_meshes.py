@@ -9,12 +9,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import meshio
+import pyvista as pv
+from pyvista import examples
+
 from ipsph.geometry import inside, meshes
 from ipsph import config as model
 from ipsph.errors import MeshError
-
-pv = pytest.importorskip("pyvista")
-from pyvista import examples  # noqa: E402
 
 MODELS = Path(__file__).resolve().parents[1] / "meshes"  # shipped with the repository (meshes/PROVENANCE.md)
 
@@ -37,7 +38,6 @@ def unit_box():
 # ----------------------------------------------------------------------------- loading
 @pytest.mark.parametrize("suffix", [".obj", ".stl", ".ply", ".vtk", ".vtu", ".off", ".msh"])
 def test_load_formats_roundtrip_a_box(tmp_path, suffix):
-    meshio = pytest.importorskip("meshio")
     pts, faces = meshes.mesh_arrays(unit_box())
     path = tmp_path / f"box{suffix}"
     fmt = {".msh": "gmsh22"}.get(suffix)

@@ -129,6 +129,7 @@ def _level(x: np.ndarray) -> float:
     return float(np.median(x[order][last, 1]) - x[:, 1].min() + D_SPACING)
 
 
+@pytest.mark.slow
 def test_piston_raises_the_level_by_swept_volume_over_free_surface_and_nothing_passes_it():
     sim = Simulation.from_scene(_piston_scene("ipsph"))
     b = sim.boundary
@@ -227,6 +228,7 @@ def paddle_and_crate(r: float, crate: tuple, method: str | None = None) -> dict:
     }
 
 
+@pytest.mark.slow
 def test_a_checkpoint_continues_moving_walls_and_bodies_bit_identically(tmp_path):
     """checkpoint.save / restore carries the walls' positions, groups and placements, the bodies'
     states and the last reaction: 5 steps after a restore equal 5 uninterrupted ones, bit for bit."""

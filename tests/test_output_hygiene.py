@@ -108,6 +108,7 @@ def test_a_refusal_that_needs_the_sampled_scene_creates_no_folder(tmp_path, caps
     assert not (tmp_path / "a").exists(), f"{why}: left {sorted(p.name for p in tmp_path.rglob('*'))}"
 
 
+@pytest.mark.slow
 def test_a_refused_overwrite_keeps_the_earlier_run(tmp_path, capsys):
     out = tmp_path / "out"
     assert run_cli(capsys, "-o", out, "--no-render", "--end-time", 0.04, *COARSE)[0] == 0
@@ -118,6 +119,7 @@ def test_a_refused_overwrite_keeps_the_earlier_run(tmp_path, capsys):
 
 
 # -- --overwrite clears what was written before -----------------------------------------------------
+@pytest.mark.slow
 def test_overwrite_removes_everything_the_earlier_run_wrote(tmp_path, capsys):
     from ipsph.post.plots import plot_runs
 
@@ -133,6 +135,9 @@ def test_overwrite_removes_everything_the_earlier_run_wrote(tmp_path, capsys):
     (out / "renders").mkdir()
     (out / "renders" / "frame_000003.png").write_bytes(b"an old render")
     (out / "video.mp4").write_bytes(b"an old video")  # what `ipsph render OUT --video` writes
+    (out / "bodies").mkdir()  # what a scene with moving walls writes
+    (out / "bodies" / "bodies_000003.vtp").write_bytes(b"an old wall")
+    (out / "bodies.csv").write_text("an old table\n")
     assert (out / "checkpoint.npz").is_file() and (out / "frames" / "fluid_000003.vtu").is_file()
     code, err = run_cli(capsys, "-o", out, "--overwrite", "--no-render", "--end-time", 0.04, *COARSE)
     assert code == 0, err
@@ -153,6 +158,7 @@ def test_overwrite_removes_everything_the_earlier_run_wrote(tmp_path, capsys):
 
 
 # -- --resume renders what has no render ------------------------------------------------------------
+@pytest.mark.slow
 def test_resume_renders_the_earlier_frames_that_have_no_render(tmp_path, capsys, gl):
     out = tmp_path / "out"
     assert (
@@ -183,6 +189,7 @@ def test_resume_renders_the_earlier_frames_that_have_no_render(tmp_path, capsys,
 
 
 # -- Ctrl-C ----------------------------------------------------------------------------------------
+@pytest.mark.slow
 def test_ctrl_c_prints_one_line_and_no_traceback(tmp_path, gl):
     """A terminal's Ctrl-C signals the whole process group: the run and its render process."""
     out = tmp_path / "out"
@@ -216,6 +223,7 @@ def test_ctrl_c_prints_one_line_and_no_traceback(tmp_path, gl):
     assert rendered == frames if not note else int(note[0].split()[2]) == frames - rendered, err
 
 
+@pytest.mark.slow
 def test_the_render_process_does_not_outlive_a_killed_run(tmp_path, gl):
     """It ignores SIGINT (the run decides), so a run killed outright (SIGKILL) must not leave it behind."""
     import psutil
@@ -280,6 +288,7 @@ def test_a_run_of_hours_is_announced_and_needs_yes_off_a_terminal(tmp_path, caps
     assert said == []
 
 
+@pytest.mark.slow
 def test_progress_lines_reach_a_log_file(tmp_path, capsys, monkeypatch):
     from ipsph.run import folder
 
@@ -296,6 +305,7 @@ def test_progress_lines_reach_a_log_file(tmp_path, capsys, monkeypatch):
 
 
 # -- the summary, and the stats a method writes ----------------------------------------------------
+@pytest.mark.slow
 def test_the_summary_splits_the_wall_time(tmp_path, capsys):
     out = tmp_path / "out"
     code, err = run_cli(capsys, "-o", out, "--no-render", "--end-time", 0.08, *COARSE)
@@ -325,6 +335,7 @@ def test_the_summary_splits_the_wall_time(tmp_path, capsys):
         ("dfsph", ("solvePDConstraints", "viscositySolve")),
     ],
 )
+@pytest.mark.slow
 def test_stats_leave_out_the_phases_a_method_lacks_and_errors_are_not_negative(tmp_path, capsys, method, absent):
     import numpy as np
     from ipsph.io.stats import read_stats
@@ -339,7 +350,7 @@ def test_stats_leave_out_the_phases_a_method_lacks_and_errors_are_not_negative(t
         if phase in absent:
             assert np.all(np.isnan(col)), phase  # empty, not a timing of 0 ms
         else:
-            assert np.all(np.isfinite(col)) and np.all(col >= 0), phase
+            assert np.all(np.isfinite(col)) and col.sum() > 0, phase  # a phase that ran took time
     # the error is max(rho/rho0 - 1, 0) per particle, so it cannot be negative by construction; what
     # can fail: the worst particle is at least the mean, and the collapsing column is compressed
     # somewhere within its first 0.08 s

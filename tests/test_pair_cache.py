@@ -104,6 +104,7 @@ def _filled(sim, by):
 
 
 @pytest.mark.parametrize("by", ["density", "viscosity"])
+@pytest.mark.slow
 def test_cache_holds_mf_grad_w_of_every_listed_pair(splashing, by):
     fl, x = splashing.method.fluid, splashing.state.x
     nf, cf = splashing.search.lists.fluid, splashing.search.lists.fluid_count
@@ -120,6 +121,7 @@ def test_cache_holds_mf_grad_w_of_every_listed_pair(splashing, by):
 
 
 @pytest.mark.parametrize("by", ["density", "viscosity"])
+@pytest.mark.slow
 def test_cached_passes_equal_the_uncached_ones(splashing, by):
     fl, st, d = splashing.method.fluid, splashing.state, splashing.method.data.dens
     nf, cf = splashing.search.lists.fluid, splashing.search.lists.fluid_count
@@ -164,6 +166,7 @@ def _steps(method, cache_mb, n):
 
 
 @pytest.mark.parametrize("method", ["dfsph", "ipsph"])
+@pytest.mark.slow
 def test_methods_give_the_same_steps_with_and_without_the_cache(method):
     sim, x1, v1, used = _steps(method, 64.0, 12)
     _, x0, v0, unused = _steps(method, 0.0, 12)

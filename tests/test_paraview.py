@@ -20,6 +20,9 @@ from ipsph.cli import main
 from ipsph.io.vtu import read_particles
 from ipsph.post.paraview import view_settings
 
+# pvpython on runs: the full suite only
+pytestmark = pytest.mark.slow
+
 # --- tolerances ------------------------------------------------------------------------------
 # Issue 23: the SPH line through the hydrostatic tank: dp/dy within 5 % of rho0 g, density
 # within 1 % of rho0 in the interior (at least H from the floor and the free surface).

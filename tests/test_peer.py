@@ -27,8 +27,10 @@ def test_load_sampler_fractions_are_sane():
     with load_sampler(interval=0.1) as sampler:
         time.sleep(0.45)
     s = sampler.summary()
-    assert 0.4 <= s.seconds < 5.0  # slept 0.45 s; a loaded machine may delay the join, not by seconds
-    assert s.samples >= 3  # 0.45 s / 0.1 s = 4 full intervals, allow one lost to scheduling
+    assert s.seconds >= 0.45  # slept 0.45 s (a loaded machine may delay the join, never shorten it)
+    # at least the tail sample; at most one per full interval plus the tail (a starved sampler thread
+    # takes fewer, so no lower count is asserted)
+    assert 1 <= s.samples <= s.seconds / 0.1 + 1
     for x in (s.cpu_busy_mean, s.cpu_busy_max, s.others_busy_mean, s.others_busy_max):
         assert 0.0 <= x <= 1.0
     assert s.cpu_busy_mean <= s.cpu_busy_max + 1e-12
@@ -39,17 +41,27 @@ def test_load_sampler_fractions_are_sane():
 
 
 def test_load_sampler_counts_own_work_as_busy_not_as_others():
-    """Spinning this process for 0.6 s must show as busy CPU, and mostly not as someone else's load."""
+    """Between two snapshots, the machine's busy jiffies are the busy fraction and this process's
+    CPU seconds are taken out of them for others' share (the arithmetic, without the clock)."""
+    hz = os.sysconf("SC_CLK_TCK")
+    s = LoadSampler()
+    # 10 s of jiffies summed over the CPUs, 6 s of them busy, 2 s of those ours (1 s in a child born since)
+    s._record(((0, 0), {1: 5.0}), ((6 * hz, 10 * hz), {1: 5.0 + 1.0, 2: 1.0}))
+    assert s._busy == [pytest.approx(0.6)] and s._others == [pytest.approx(0.4)]
+    s._record(((0, 0), {1: 0.0}), ((1 * hz, 10 * hz), {1: 2.0}))  # more than all the busy time: clipped at 0
+    assert s._others[-1] == 0.0
+
+
+def test_load_sampler_sees_own_work():
+    """Spinning this process shows as busy CPU (however little of a core a loaded machine gives it),
+    and others' share never exceeds the whole."""
     with load_sampler(interval=0.2) as sampler:
         t_end = time.perf_counter() + 0.6
         while time.perf_counter() < t_end:
             pass
     s = sampler.summary()
-    ncpu = os.cpu_count() or 1
-    # one spinning thread is 1/ncpu of the machine; 0.5 of that leaves room for the sampler's GIL share
-    assert s.cpu_busy_mean >= 0.5 / ncpu
-    # our own spin is subtracted: others' share is below the total by at least a quarter core
-    assert s.others_busy_mean <= s.cpu_busy_mean - 0.25 / ncpu
+    assert s.cpu_busy_mean > 0.0 and s.cpu_busy_max > 0.0
+    assert s.others_busy_mean <= s.cpu_busy_mean + 1e-12
 
 
 def test_load_sampler_short_run_still_gives_one_sample():

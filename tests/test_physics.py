@@ -14,6 +14,9 @@ from ipsph.geometry import meshes
 from ipsph.scene import load_scene, scene_from_dict
 from ipsph.simulation import Simulation, sample_scene, wants_settle
 
+# the tank runs for seconds of simulated time: the full suite only
+pytestmark = pytest.mark.slow
+
 G = 9.81
 RHO0 = 1000.0
 

@@ -35,6 +35,7 @@ def test_pipeline_meshes_live_in_the_repository(path):
 
 
 @pytest.mark.parametrize("path", PIPELINES, ids=lambda p: p.stem)
+@pytest.mark.slow
 def test_pipeline_steps_from_a_clone(path, tmp_path):
     scene = load_scene(path, [f"simulation.particle_radius={COARSE_R}", f"simulation.end_time={END_TIME}"])
     out = tmp_path / "out"
@@ -114,6 +115,7 @@ FIRST_STEPS_DENSITY_ERROR = 0.05
 
 @pytest.mark.parametrize("method", ["ipsph", "pf", "dfsph"])
 @pytest.mark.parametrize("path", PIPELINES, ids=lambda p: p.stem)
+@pytest.mark.slow
 def test_pipeline_steps_with_every_method(path, method):
     """Three steps of each pipeline with each method (the test above runs each pipeline's own)."""
     import numpy as np
@@ -126,4 +128,4 @@ def test_pipeline_steps_with_every_method(path, method):
         stats = sim.step()
     assert sim.steps == 3 and stats.time > 0 and sim.n_fluid > 0
     assert np.all(np.isfinite(sim.positions)) and np.all(np.isfinite(sim.densities))
-    assert 0.0 <= stats.density_error_mean <= FIRST_STEPS_DENSITY_ERROR
+    assert stats.density_error_mean <= FIRST_STEPS_DENSITY_ERROR  # >= 0 by construction (max(rho/rho0 - 1, 0))

@@ -32,13 +32,6 @@ from ipsph.post.render import (
 SMALL = RenderConfig(width=320, height=180)
 
 
-@pytest.fixture(scope="session")
-def gl():
-    ok, reason = gl_available()
-    if not ok:
-        pytest.skip(reason)
-
-
 def make_output_folder(out: Path, n_frames: int = 3, r: float = 0.02) -> Path:
     """A synthetic, solver-free output folder: a column of fluid sliding right in a box."""
     import pyvista as pv
@@ -316,6 +309,7 @@ def test_splat_engine_matches_the_all_vtk_render(gl, tmp_path):
     assert (diff.mean(axis=2) > 40).mean() < 0.03, (diff.mean(axis=2) > 40).mean()
 
 
+@pytest.mark.slow
 def test_run_without_gl_warns_once_and_keeps_the_simulation(tmp_path):
     """No usable GL (libglvnd pointed at no EGL vendor): the render process crashes, the run goes
     on, writes its frames, and says why in one warning line; no PNG appears."""

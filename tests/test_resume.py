@@ -19,6 +19,9 @@ from ipsph.io import RUN_JSON, RUN_PVD, STATS_CSV, vtu
 from ipsph.io.pvd import PvdSeries
 from ipsph.io.stats import read_stats
 
+# every test continues a run: the full suite only
+pytestmark = pytest.mark.slow
+
 T = 0.24  # 6 frames at 25 fps of the coarse dam break: the column is falling and splashing by then
 BASE = [
     "--quiet",

@@ -9,6 +9,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import pyvista as pv
+from pyvista import examples
 
 from ipsph.geometry import inside, meshes
 from ipsph import config as model
@@ -19,9 +21,6 @@ from ipsph.boundary import MODELS as WALL_MODELS
 from ipsph.boundary.models import CONTAINER_OFFSET_D
 from ipsph.boundary.sampling import boundary_positions
 from ipsph.errors import ConfigError, MeshError
-
-pv = pytest.importorskip("pyvista")
-from pyvista import examples  # noqa: E402
 
 MODELS = Path(__file__).resolve().parents[1] / "meshes"  # shipped with the repository (meshes/PROVENANCE.md)
 R = 0.025

@@ -398,3 +398,50 @@ role = "obstacle"
     d = json.loads(json.dumps(scene_to_dict(s)))
     assert scene_from_dict(d) == s
     assert scene_from_dict(d, Path("/"), "other").name == "other"  # absolute mesh paths
+
+
+# A [[fluid]] key added to the table, and nothing else: the table is patched before any module
+# that generates from it is imported (a fresh process, so the rest of the suite keeps its classes).
+_DUMMY_KEY = """
+import importlib, json, sys
+import ipsph.params
+from ipsph.params import body_keys
+from ipsph.params.schema import _P
+
+body_keys.KEYS = body_keys.KEYS + (_P("fluid.dummy", "float", 1.0, "", "A key nothing reads.", "dummy"),)
+importlib.reload(ipsph.params)
+from ipsph.scene import load_scene, scene_from_dict, scene_to_dict
+
+scene = load_scene(sys.argv[1])
+stored = scene_to_dict(scene)
+print(json.dumps({"spec": [f.dummy for f in scene.fluids], "again": scene_from_dict(stored) == scene}))
+from ipsph.cli import main
+
+sys.exit(main(["run", sys.argv[1], "-o", sys.argv[2], "--end-time", "0.01", "--no-render", "--quiet"]))
+"""
+
+
+def test_a_new_fluid_key_reaches_the_spec_and_run_json(tmp_path):
+    """One line in params/body_keys.py is all a [[fluid]] key needs: the given value lands on the
+    FluidSpec (the default where left out) and run.json's scene writes it back."""
+    import subprocess
+    import sys
+
+    from ipsph.io import RUN_JSON
+    from ipsph.io.provenance import read_run_json
+
+    p = write(tmp_path, MINIMAL + "dummy = 2.5\n[[fluid]]\nbox = { min = [1, 0, 0], max = [1.2, 0.2, 0.2] }\n")
+    res = subprocess.run(
+        [sys.executable, "-c", _DUMMY_KEY, str(p), str(tmp_path / "out")], capture_output=True, text=True, timeout=600
+    )
+    assert res.returncode == 0, res.stderr
+    assert json.loads(res.stdout.splitlines()[0]) == {"spec": [2.5, 1.0], "again": True}
+    stored = read_run_json(tmp_path / "out" / RUN_JSON)["scene"]
+    assert [f["dummy"] for f in stored["fluid"]] == [2.5, 1.0]
+
+
+def test_each_motion_type_takes_declared_motion_keys():
+    from ipsph.params import MOTION_KEYS
+
+    declared = {p.key for p in PARAMS if p.path.startswith("boundary.motion.")}
+    assert all(set(keys) <= declared - {"type"} for keys in MOTION_KEYS.values()), MOTION_KEYS

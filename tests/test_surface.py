@@ -126,6 +126,7 @@ def dam_break(tmp_path_factory):
     return out
 
 
+@pytest.mark.slow
 def test_dam_break_surfaces_stay_in_the_tank_and_are_listed_in_run_pvd(dam_break):
     import pyvista as pv
 
@@ -155,6 +156,7 @@ def test_dam_break_surfaces_stay_in_the_tank_and_are_listed_in_run_pvd(dam_break
     assert blocks.n_blocks == 4 and {"Normals", "velocity", "speed"} <= set(blocks[1].array_names)
 
 
+@pytest.mark.slow
 def test_ipsph_surface_skips_fills_in_and_converts(dam_break, tmp_path):
     import shutil
 
@@ -178,6 +180,7 @@ def test_ipsph_surface_skips_fills_in_and_converts(dam_break, tmp_path):
     assert res.returncode == 2 and "surface.cube_size" in res.stderr and res.stderr.count("\n") == 1
 
 
+@pytest.mark.slow
 def test_a_failed_frame_is_one_warning_and_is_listed(tmp_path):
     out = tmp_path / "out"
     (out / "frames").mkdir(parents=True)
@@ -234,15 +237,7 @@ def test_pvd_lists_surfaces_as_part_2_and_resume_drops_the_later_ones(tmp_path):
     assert PvdSeries.load(tmp_path / "run.pvd").surfaces == {0.0: surface_file(0)}
 
 
-@pytest.fixture(scope="module")
-def gl():
-    from ipsph.post.render import gl_available
-
-    ok, reason = gl_available()
-    if not ok:
-        pytest.skip(reason)
-
-
+@pytest.mark.slow
 def test_surface_renders_show_the_mesh_with_the_walls(gl, dam_break, tmp_path):
     import imageio.v3 as iio
 
@@ -268,6 +263,7 @@ def test_surface_renders_show_the_mesh_with_the_walls(gl, dam_break, tmp_path):
     assert (fluid[:, 2] >= fluid[:, 0]).mean() > 0.9  # blue to white: the speed colour map
 
 
+@pytest.mark.slow
 def test_surface_mode_renders_during_a_run(gl, tmp_path):
     out = tmp_path / "out"
     res = ipsph(
@@ -290,8 +286,9 @@ def test_surface_mode_renders_during_a_run(gl, tmp_path):
     assert len(list((out / "surfaces").glob("*.vtp"))) == 3 == len(list((out / "renders").glob("*.png")))
 
 
-def test_bench_surface_sizes_reports_seconds_and_cpu():
-    from ipsph.bench.surface_cost import sizes_table, surface_seconds
+@pytest.mark.slow
+def test_surface_sizes_study_reports_seconds_and_cpu():
+    from benchmarks.surface_cost import sizes_table, surface_seconds
 
     row = surface_seconds(3000, threads=1, repeats=1, log=lambda m: None)
     assert row["particles"] == 14**3 and row["triangles"] > 0

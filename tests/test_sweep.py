@@ -107,6 +107,7 @@ def run_json(folder: Path) -> dict:
     return json.loads((folder / RUN_JSON).read_text())
 
 
+@pytest.mark.slow
 def test_two_worker_sweep_equals_separate_runs(swept, references, capsys):
     out, recs = swept
     assert [r["name"] for r in recs] == NAMES
@@ -139,6 +140,7 @@ def test_two_worker_sweep_equals_separate_runs(swept, references, capsys):
     assert all(Path(p).parent == out / "plots" and Path(p).stat().st_size > 10_000 for p in pngs)
 
 
+@pytest.mark.slow
 def test_rerunning_a_complete_sweep_does_nothing(swept, sweep_file, monkeypatch, capsys):
     out, _ = swept
     before = {n: (out / n / RUN_JSON).stat().st_mtime_ns for n in NAMES}
@@ -148,6 +150,7 @@ def test_rerunning_a_complete_sweep_does_nothing(swept, sweep_file, monkeypatch,
     assert before == {n: (out / n / RUN_JSON).stat().st_mtime_ns for n in NAMES}
 
 
+@pytest.mark.slow
 def test_resume_reruns_only_what_is_missing(swept, sweep_file, references, tmp_path, capsys):
     out = tmp_path / "out"
     shutil.copytree(swept[0], out)
@@ -168,6 +171,7 @@ def test_resume_reruns_only_what_is_missing(swept, sweep_file, references, tmp_p
         ipsph.sweep(changed, out, resume=True)
 
 
+@pytest.mark.slow
 def test_failing_member_does_not_stop_the_others(sweep_file, tmp_path):
     f = sweep_file.with_name("failing.toml")
     # the middle member leaves the tank at 900 m/s within a few steps: ipsph run exits 3
@@ -191,6 +195,7 @@ def test_failing_member_does_not_stop_the_others(sweep_file, tmp_path):
     assert saved["members"][1]["reason"] == bad["reason"]
 
 
+@pytest.mark.slow
 def test_local_cluster_listens_on_loopback_only():
     cluster = engine.start_local_cluster(2, 1, "127.0.0.1:0")
     try:
@@ -258,6 +263,7 @@ def child_pid(folder: Path) -> int:
     return int((folder / member.PID_FILE).read_text().split()[0])
 
 
+@pytest.mark.slow
 def test_killed_worker_has_its_member_finished(sweep_file, references, tmp_path):
     out = tmp_path / "out"
     proc = start_sweep(sweep_file, out, "--quiet")
@@ -280,6 +286,7 @@ def test_killed_worker_has_its_member_finished(sweep_file, references, tmp_path)
         assert_same_frames(references[n], out / n, max_extra=1 if n == victim else 0)
 
 
+@pytest.mark.slow
 def test_ctrl_c_stops_cleanly_and_resume_finishes(sweep_file, references, tmp_path):
     out = tmp_path / "out"
     proc = start_sweep(sweep_file, out)
@@ -314,6 +321,7 @@ def test_ctrl_c_stops_cleanly_and_resume_finishes(sweep_file, references, tmp_pa
         assert_same_frames(references[n], out / n, max_extra=1 if n in stopped else 0)
 
 
+@pytest.mark.slow
 def test_joins_an_existing_scheduler_and_uses_its_workers_threads(sweep_file, tmp_path):
     """--scheduler: a cluster the sweep did not start (here a 1-worker x 2-thread LocalCluster whose
     worker declares no ipsph_member resource): each member gets the worker's 2 threads, one at a time."""
@@ -351,6 +359,7 @@ class FakeClient:
         return {addr: (fn(probe, token) if a == "real" else a) for addr, a in self.answers.items()}
 
 
+@pytest.mark.slow
 def test_shared_folder_check_names_a_worker_that_cannot_see_out(tmp_path):
     engine.check_shared_folder(FakeClient({"tcp://a:1": "real", "tcp://b:1": "real"}), tmp_path)
     assert list(tmp_path.iterdir()) == []  # the probe files are gone

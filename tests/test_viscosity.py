@@ -31,12 +31,20 @@ def lattice_block(n1, support_in_d):
     h = support_in_d * D
     g = np.arange(n1) * D
     x = np.stack(np.meshgrid(g, g, g, indexing="ij"), -1).reshape(-1, 3)
-    dist = np.linalg.norm(x[:, None] - x[None], axis=2)
-    near = (dist < h) & (dist > 0)
+    # the brute-force lists (0 < |x_i - x_j| < h, ascending j), with only the lattice offsets within
+    # reach as candidates: every pair of an n1^3 block would be a (n, n, 3) array
+    k = int(np.ceil(support_in_d))
+    ijk = np.stack(np.meshgrid(*[np.arange(n1)] * 3, indexing="ij"), -1).reshape(-1, 1, 3)
+    offsets = np.stack(np.meshgrid(*[np.arange(-k, k + 1)] * 3, indexing="ij"), -1).reshape(1, -1, 3)
+    cand = ijk + offsets
+    inside = np.all((cand >= 0) & (cand < n1), axis=2)
+    j = np.where(inside, (cand[..., 0] * n1 + cand[..., 1]) * n1 + cand[..., 2], 0)
+    dist = np.linalg.norm(x[:, None] - x[j], axis=2)
+    near = inside & (dist < h) & (dist > 0)
+    j = np.sort(np.where(near, j, len(x)), axis=1)  # the neighbours first, ascending
     cf = near.sum(1).astype(np.int32)
-    nf = np.zeros((len(x), cf.max()), np.int32)
-    for i in range(len(x)):
-        nf[i, : cf[i]] = np.nonzero(near[i])[0]
+    nf = np.ascontiguousarray(j[:, : cf.max()], dtype=np.int32)
+    nf[np.arange(nf.shape[1]) >= cf[:, None]] = 0  # past a row's count, as the search leaves it
     mf = RHO0 * D**3
     n = len(x)
     rho, alpha, lam, err, gb = np.empty(n), np.empty(n), np.zeros(n), np.empty(n), np.empty((n, 3))

@@ -248,9 +248,11 @@ def measure(
 
 
 def main(argv: list[str] | None = None) -> int:
+    from ..params import METHOD_NAMES
+
     ap = argparse.ArgumentParser(prog="python -m ipsph.bench._ours_worker", description=__doc__.split("\n")[0])
     ap.add_argument("--scene", required=True, help="scene file (.toml or SPlisHSPlasH .json), or 'default'")
-    ap.add_argument("--method", required=True, choices=("ipsph", "pf", "dfsph"))
+    ap.add_argument("--method", required=True, choices=METHOD_NAMES)
     ap.add_argument("--end-time", type=float, default=None, help="simulated seconds")
     ap.add_argument("--steps", type=int, default=None, help="run W + S steps instead of an end time")
     ap.add_argument("--warmup", type=int, default=1, help="steps left out of the statistics with --steps")

@@ -74,7 +74,7 @@ def scene(
     from ..simulation import sample_scene
     from ..scene import scene_from_dict
 
-    d = 2.0 * r
+    d = spacing(r)
     a = n_across * d
     slot = a + 2 * PAD_D * d
     frac = density / 1000.0
@@ -223,7 +223,7 @@ def run(methods, densities, sizes, models=(None,), r: float = 0.0125, end_time: 
                 out(f"# {name}: {path} not found (meshes/ ships with a clone of the repository)")
                 continue
             for method in methods:
-                f = float_mesh(method, 500.0, str(path), MESH_SIZE_D * 2.0 * r, r, end_time)
+                f = float_mesh(method, 500.0, str(path), MESH_SIZE_D * spacing(r), r, end_time)
                 rows.append(f)
                 out(_row(f, name))
     out(
@@ -243,7 +243,7 @@ def float_mesh(method: str, density: float, mesh: str, size: float, r: float = 0
     from ..scene import scene_from_dict
     from ..simulation import Simulation
 
-    d = 2.0 * r
+    d = spacing(r)
     raw = load_mesh(mesh)
     lo0, hi0 = np.array(raw.bounds[0::2]), np.array(raw.bounds[1::2])
     scale = size / float((hi0 - lo0).max())

@@ -6,9 +6,6 @@
     ipsph bench --scaling 1000000 --backend cuda  # the same on a GPU, beside the CPU up to --cpu-max-particles
     ipsph bench --first-frame                    # seconds to the first frame, cold and warm Numba cache
     ipsph bench --buoyancy --methods ipsph       # floating cubes against Archimedes (method.md section 9)
-    ipsph bench --surface-sizes 1000000          # seconds per surface of a jittered N-particle lattice
-    ipsph bench --surface-overhead --repeats 5   # default scene with / without --surface
-    ipsph bench --baseline ../base               # this build against another source tree, interleaved
 
 Every simulation runs in its own worker process (peak RSS per method) with the same thread count
 (NUMBA_NUM_THREADS for ours, OMP_NUM_THREADS for SPlisHSPlasH), in the order
@@ -16,8 +13,9 @@ Every simulation runs in its own worker process (peak RSS per method) with the s
 which other processes used more than ``--max-load`` cores is shown as loaded and left out of the medians.
 
 The modes live beside this file: runs.py (the interleaved comparison), scaling.py, first_frame.py,
-surface_cost.py. Studies of our own (the paper's Table 1 and Figure 4, the render, sweep and
-moving-wall overheads) are in the repository's benchmarks/ folder (`python -m benchmarks --help`).
+buoyancy.py. Studies of our own (the paper's Table 1 and Figure 4, what renders, surfaces, sweeps
+and moving walls cost, another build against this one) are in the repository's benchmarks/ folder
+(`python -m benchmarks --help`); they take these options too.
 """
 
 from __future__ import annotations
@@ -42,6 +40,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.description = (
         "Benchmark our methods (and SPlisHSPlasH's DFSPH and PF, when pysplishsplash is installed) "
         "on the stock SPlisHSPlasH scenes, interleaved, one process per run."
+    )
+    p.epilog = (
+        "Our own studies (the paper's Table 1 and Figure 4, what renders, surfaces, sweeps and moving walls "
+        "cost, another build against this one) run from a clone: python -m benchmarks --help."
     )
     p.add_argument(
         "--scenes",
@@ -127,21 +129,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="timed steps per size, after 2 warm-up steps (default 10)",
     )
     p.add_argument(
-        "--surface-sizes",
-        nargs="*",
-        type=int,
-        metavar="N",
-        default=None,
-        help="seconds per surface reconstruction of a jittered lattice of N particles on "
-        "--threads threads, median of --repeats (default size: 1000000; --set surface.KEY=VALUE)",
-    )
-    p.add_argument(
-        "--surface-overhead",
-        action="store_true",
-        help="wall time of `ipsph run` on the default scene with and without --surface, --repeats "
-        "alternating pairs, and the slow-down (target <= 25 %%)",
-    )
-    p.add_argument(
         "--buoyancy",
         action="store_true",
         help="a cube of 300, 500, 700 and 900 kg/m^3, 6 and 12 spacings across, floating in a tank: its "
@@ -158,13 +145,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--first-frame",
         action="store_true",
         help="time to first frame of `ipsph run` (default scene), with a cold and a warm Numba cache",
-    )
-    p.add_argument(
-        "--baseline",
-        type=Path,
-        metavar="DIR",
-        help="also run our methods from the ipsph source tree DIR (e.g. `git worktree add ../base main`), "
-        "interleaved with this build, and print this / baseline ratios (a change's speed A/B)",
     )
     p.add_argument(
         "--set",
@@ -184,12 +164,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--timeout", type=float, default=1800.0, metavar="S", help="per-run timeout (default 1800 s)")
 
 
-def _check_args(args) -> None:
-    if args.baseline is not None and not (args.baseline / "ipsph" / "bench" / "_ours_worker.py").is_file():
-        raise ConfigError(
-            f"--baseline {args.baseline} (resolved {args.baseline.resolve()}): not an ipsph source "
-            f"tree (no ipsph/bench/_ours_worker.py in it)"
-        )
+def check_args(args) -> None:
+    """The options' values (exit 2 on a bad one), before anything runs."""
     if not args.end_time > 0:
         raise ConfigError(f"--end-time {args.end_time}: must be > 0 simulated seconds")
     if args.repeats < 1:
@@ -239,7 +215,7 @@ def main(args) -> int:
     if args.from_json is not None:
         print(reprint(args.from_json, args.markdown, args.max_load))
         return 0
-    _check_args(args)
+    check_args(args)
     if args.buoyancy:
         from .buoyancy import run as float_cubes
 
@@ -264,24 +240,6 @@ def main(args) -> int:
         out["first_frame"] = rows
         texts.append(title("Time to first frame") + first_frame_table(rows, args.markdown, FIRST_FRAME_TARGET_S))
         failed |= not all(r["ok"] for r in rows)
-    if args.surface_sizes is not None:
-        from .surface_cost import sizes_table, surface_seconds
-
-        over = [o for o in args.set if o.startswith("surface.")]
-        rows = [
-            surface_seconds(n, args.threads, args.repeats, over, timeout=min(args.timeout, 900.0), log=log)
-            for n in (args.surface_sizes or [1_000_000])
-        ]
-        out["surface_sizes"] = rows
-        texts.append(title("Surface reconstruction per frame") + sizes_table(rows, args.markdown))
-        failed |= any(r["particles"] is None for r in rows)
-    if args.surface_overhead:  # the default scene's run without and with the surface process
-        from .surface_cost import overhead_table, surface_overhead
-
-        summary = surface_overhead(args.repeats, args.threads, args.max_load, timeout=min(args.timeout, 900.0), log=log)
-        out["surface_overhead"] = summary
-        texts.append(title("Surface overhead (default scene)") + overhead_table(summary, args.markdown))
-        failed |= not summary["ok"]
     if args.scaling is not None:
         peer, why = use_peer(args.peer)
         header += f"; scaling: {why}"
@@ -289,7 +247,7 @@ def main(args) -> int:
         out["scaling"] = rows
         texts.append(title("Scaling (dam break)") + text)
         failed |= any(r.get("error") for r in rows)
-    if not (args.first_frame or args.scaling is not None or args.surface_sizes is not None or args.surface_overhead):
+    if not (args.first_frame or args.scaling is not None):
         peer, why = use_peer(args.peer)
         header += f"; {why}"
         log(header)
@@ -299,10 +257,10 @@ def main(args) -> int:
         failed |= any(r.get("error") for r in rows)
     else:
         log(header)
-    return _finish(args, out, header, texts, failed)
+    return finish(args, out, header, texts, failed)
 
 
-def _finish(args, out: dict, header: str, texts: list[str], failed: bool) -> int:
+def finish(args, out: dict, header: str, texts: list[str], failed: bool) -> int:
     """Print the tables, save --json; exit 1 when a run failed or a target was missed."""
     print(("# " if args.markdown else "") + header + "\n")
     print("\n\n".join(texts))

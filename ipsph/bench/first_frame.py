@@ -11,7 +11,8 @@ import os
 import tempfile
 from pathlib import Path
 
-from .report import _f, _num, format_table
+from ..io import RUN_JSON
+from .report import _f, fmt_num, format_table
 from .runs import log
 
 FIRST_FRAME_TARGET_S = {"cold": 25.0, "warm": 3.0}  # on 2 cores
@@ -31,7 +32,7 @@ def first_frame(threads: int, timeout: float = 900.0, repeats: int = 1) -> list[
                 out = Path(tmp) / f"out-{cache}-{k}"
                 r = timed_ipsph_run(["--end-time", "0.04", "--no-render"], out, threads, timeout, env)
                 try:  # run.json splits the time: setup (sampling, output folder), compile, the time loop
-                    run_info = json.loads((out / "run.json").read_text())
+                    run_info = json.loads((out / RUN_JSON).read_text())
                 except (OSError, json.JSONDecodeError):
                     run_info = {}
                 secs, code, frames, load = r["seconds"], r["exit_code"], r["frames"], r["load"]
@@ -79,8 +80,8 @@ def first_frame_table(rows: list[dict], markdown: bool, target: dict | float = 5
         for r in group:
             body.append(
                 [f"{cache} (run {r.get('repeat', 0) + 1})"]
-                + [_num(v) for v in cells(r)]
-                + ["yes" if r.get("ok") else f"no (exit {r.get('exit_code')})", _num(r.get("others_cores")), ""]
+                + [fmt_num(v) for v in cells(r)]
+                + ["yes" if r.get("ok") else f"no (exit {r.get('exit_code')})", fmt_num(r.get("others_cores")), ""]
             )
         ok = [r for r in group if r.get("ok")]
         if ok:
@@ -89,8 +90,8 @@ def first_frame_table(rows: list[dict], markdown: bool, target: dict | float = 5
             verdict = "" if goal is None else ("meets" if med[0] <= goal else "misses") + f" {goal:g} s"
             body.append(
                 [f"**{cache}: median of {len(ok)}**" if markdown else f"{cache}: median of {len(ok)}"]
-                + [_num(v) for v in med]
-                + ["", _num(statistics.median(_f(r.get("others_cores")) for r in ok)), verdict]
+                + [fmt_num(v) for v in med]
+                + ["", fmt_num(statistics.median(_f(r.get("others_cores")) for r in ok)), verdict]
             )
     return format_table(
         [

@@ -292,6 +292,8 @@ def timed_ipsph_run(args: list[str], out, threads: int, timeout: float, env: dic
     secs = time.perf_counter() - t0
     load = sampler.stop()
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    from ..io import FRAMES_DIR, RENDERS_DIR
+
     count = lambda folder, pattern: len(list((out / folder).glob(pattern))) if (out / folder).is_dir() else 0  # noqa: E731
     return {
         "seconds": secs,
@@ -299,7 +301,7 @@ def timed_ipsph_run(args: list[str], out, threads: int, timeout: float, env: dic
         "stderr_tail": (err or "")[-1000:],
         "load": load,
         "cpu_seconds": (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime),
-        "frames": count("frames", "*.vtu"),
-        "pngs": count("renders", "*.png"),
+        "frames": count(FRAMES_DIR, "*.vtu"),
+        "pngs": count(RENDERS_DIR, "*.png"),
         "command": cmd,
     }

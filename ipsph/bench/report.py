@@ -23,8 +23,11 @@ __all__ = [
     "is_loaded",
     "summarise",
     "format_table",
+    "fmt_num",
+    "fmt_int",
     "scene_tables",
     "ratio_lines",
+    "PEER_PAIRS",
     "PHASE_SHORT",
 ]
 
@@ -35,7 +38,8 @@ LABELS = {
     ("peer", "dfsph"): "SPH-DFSPH",
     ("peer", "pf"): "SPH-PF",
 }
-BASELINE = " (baseline)"  # label suffix of `ipsph bench --baseline DIR` rows
+# the ratio lines under a scene's table: (ours, theirs) by label, where both ran
+PEER_PAIRS = (("IPSPH", "SPH-DFSPH"), ("IPSPH", "SPH-PF"))
 # per-phase column: our timer name -> short label, in print order
 PHASE_SHORT = OrderedDict((p, short) for p, (short, _) in PHASES.items())
 NUMERIC = (
@@ -180,12 +184,14 @@ def summarise(rows: list[dict], max_load: float) -> "OrderedDict[tuple[str, str]
 
 
 # -- formatting ------------------------------------------------------------------------------------
-def _num(x, fmt: str = "{:.2f}") -> str:
+def fmt_num(x, fmt: str = "{:.2f}") -> str:
+    """A table cell: the number in `fmt`, or a dash for a missing one."""
     x = _f(x)
     return "—" if math.isnan(x) else fmt.format(x)
 
 
-def _int(x) -> str:
+def fmt_int(x) -> str:
+    """A table cell: the count with thousands separators, or a dash for a missing one."""
     x = _f(x)
     return "—" if math.isnan(x) else f"{int(round(x)):,}"
 
@@ -226,21 +232,22 @@ SCENE_HEADERS = [
 def _scene_row(label: str, r: dict) -> list[str]:
     return [
         label,
-        _int(r.get("fluid")),
-        _int(r.get("boundary")),
-        _int(r.get("steps")),
-        _num(r.get("ms_step")),
+        fmt_int(r.get("fluid")),
+        fmt_int(r.get("boundary")),
+        fmt_int(r.get("steps")),
+        fmt_num(r.get("ms_step")),
         _phases(r),
-        _num(r.get("wall_per_sim")),
-        _num(r.get("err_mean"), "{:.3f}"),
-        _num(r.get("err_worst"), "{:.3f}"),
-        _num(r.get("rss_mb"), "{:.0f}"),
-        f"{_num(r.get('others_cores'))}, {_num(r.get('loadavg'), '{:.1f}')}",
+        fmt_num(r.get("wall_per_sim")),
+        fmt_num(r.get("err_mean"), "{:.3f}"),
+        fmt_num(r.get("err_worst"), "{:.3f}"),
+        fmt_num(r.get("rss_mb"), "{:.0f}"),
+        f"{fmt_num(r.get('others_cores'))}, {fmt_num(r.get('loadavg'), '{:.1f}')}",
     ]
 
 
-def scene_tables(groups, markdown: bool, max_load: float) -> str:
-    """One table per scene: the median of the quiet runs per method, then each loaded/failed run."""
+def scene_tables(groups, markdown: bool, max_load: float, pairs=PEER_PAIRS, digits: int = 2) -> str:
+    """One table per scene: the median of the quiet runs per method, then each loaded/failed run,
+    and the ratio lines of `pairs` (`ratio_lines`)."""
     out = []
     scenes = list(OrderedDict.fromkeys(s for s, _ in groups))
     for scene in scenes:
@@ -262,7 +269,7 @@ def scene_tables(groups, markdown: bool, max_load: float) -> str:
             notes.insert(0, "no quiet run, so no median, for " + ", ".join(no_quiet) + ": all loaded or failed")
         title = f"### {scene}" if markdown else f"== {scene} =="
         block = [title, "", format_table(SCENE_HEADERS, rows, markdown)] if rows else [title]
-        ratio = ratio_lines(groups, scene)
+        ratio = ratio_lines(groups, scene, pairs, digits)
         if ratio:
             block += [""] + [("- " if markdown else "") + line for line in ratio]
         if notes:
@@ -276,15 +283,14 @@ def scene_tables(groups, markdown: bool, max_load: float) -> str:
     return "\n\n".join(out + [legend])
 
 
-def ratio_lines(groups, scene: str) -> list[str]:
-    """'IPSPH / SPH-DFSPH: wall per simulated second x, ms per step y' for the peer methods present.
+def ratio_lines(groups, scene: str, pairs=PEER_PAIRS, digits: int = 2) -> list[str]:
+    """'IPSPH / SPH-DFSPH: wall per simulated second x, ms per step y' for each (ours, theirs) label
+    pair of `pairs` that ran on `scene`, to `digits` decimals.
 
     From the medians of quiet runs; when either side has none, from the medians of all runs
     (loaded included), and the line says so.
     """
     here = {label: g for (s, label), g in groups.items() if s == scene}
-    pairs = [("IPSPH", peer) for peer in ("SPH-DFSPH", "SPH-PF")]
-    pairs += [(label, label + BASELINE) for label in ("IPSPH", "PF", "DFSPH")]  # ipsph bench --baseline
     lines = []
     for mine, other in pairs:
         if mine not in here or other not in here:
@@ -296,7 +302,7 @@ def ratio_lines(groups, scene: str) -> list[str]:
             continue
         a, b = _f(ours.get("wall_per_sim")), _f(p.get("wall_per_sim"))
         c, d = _f(ours.get("ms_step")), _f(p.get("ms_step"))
-        q = 3 if other.endswith(BASELINE) else 2  # an A/B of one build against another: finer
+        q = digits
         if b > 0 and d > 0 and not math.isnan(a):
             lines.append(
                 f"{mine} / {other.strip()}: wall per simulated second {a / b:.{q}f}x, ms per step "

@@ -1,6 +1,7 @@
-"""`ipsph bench`'s interleaved runs: ours (and a --baseline build's) beside SPlisHSPlasH's, one
-worker process per run, `repeats` rounds of every (scene, method) so machine noise spreads over
-all alike; and the default mode, the stock scenes compared.
+"""`ipsph bench`'s interleaved runs: ours beside SPlisHSPlasH's, one worker process per run,
+`repeats` rounds of every (scene, method) so machine noise spreads over all alike; and the default
+mode, the stock scenes compared. `run_one` and `interleaved` are public: the studies in the
+repository's benchmarks/ build on them (Table 1, another build against this one).
 """
 
 from __future__ import annotations
@@ -34,7 +35,7 @@ def use_peer(flag: bool | None) -> tuple[bool, str]:
     return ok, (f"SPlisHSPlasH: {why}" if ok else f"SPlisHSPlasH: skipped ({why})")
 
 
-def _run_one(
+def run_one(
     kind: str,
     scene_file: Path,
     method: str,
@@ -44,32 +45,30 @@ def _run_one(
     work_dir: Path,
     overrides=(),
     end_time: float | None = None,
+    env: dict[str, str] | None = None,
 ) -> dict:
-    """Run one (ours or peer) simulation; failures become a row with `error`."""
+    """Run one simulation, `kind` "ours" or "peer" (SPlisHSPlasH); failures become a row with `error`.
+    `env`: what our worker's environment changes (e.g. PYTHONPATH, to run another build)."""
     t = args.end_time if end_time is None else end_time
     t0 = time.perf_counter()
     try:
-        if kind in ("ours", "baseline"):
+        if kind == "ours":
             from .ours import run_ours
 
-            env = {"PYTHONPATH": str(args.baseline.resolve())} if kind == "baseline" else None
             res = run_ours(scene_file, method, t, args.threads, overrides, timeout=args.timeout, env=env)
         else:
             from .peer import run_peer
 
             res = run_peer(scene_file, method, t, args.threads, timeout=args.timeout, work_dir=work_dir)
-        row = report.normalise(res, "ours" if kind == "baseline" else kind, method, label_scene, repeat)
-        if kind == "baseline":
-            row.update(source=kind, label=row["label"] + report.BASELINE)
+        row = report.normalise(res, kind, method, label_scene, repeat)
         row["raw"] = res
     except (RuntimeError, ConfigError, OSError) as exc:
-        label = report.LABELS[("ours" if kind == "baseline" else kind, method)]
         row = {
             "scene": label_scene,
             "source": kind,
             "method": method,
             "repeat": repeat,
-            "label": label + (report.BASELINE if kind == "baseline" else ""),
+            "label": report.LABELS[(kind, method)],
             "error": str(exc),
         }
     row["elapsed_s"] = time.perf_counter() - t0
@@ -88,14 +87,15 @@ def _progress(i: int, n: int, row: dict, max_load: float) -> None:
     )
 
 
-def interleaved(jobs: list[tuple], args) -> list[dict]:
-    """jobs: (kind, scene_file, method, label_scene, overrides), run `repeats` times interleaved."""
+def interleaved(jobs: list[tuple], args, run=run_one) -> list[dict]:
+    """jobs: (kind, scene_file, method, label_scene, overrides), run `repeats` times interleaved, each
+    by `run` (called as `run_one` is)."""
     rows = []
     n = len(jobs) * args.repeats
     with tempfile.TemporaryDirectory(prefix="ipsph-bench-") as tmp:
         for rep in range(args.repeats):
             for kind, scene_file, method, label, overrides in jobs:
-                row = _run_one(kind, scene_file, method, args, label, rep, Path(tmp), overrides)
+                row = run(kind, scene_file, method, args, label, rep, Path(tmp), overrides)
                 rows.append(row)
                 _progress(len(rows), n, row, args.max_load)
     return rows
@@ -107,10 +107,7 @@ def bench_scenes(args, peer: bool) -> tuple[str, list[dict]]:
     jobs = []
     for f, given in files:
         label = f.stem
-        for m in args.methods:
-            jobs.append(("ours", f, m, label, tuple(args.set)))
-            if args.baseline is not None:
-                jobs.append(("baseline", f, m, label, tuple(args.set)))
+        jobs += [("ours", f, m, label, tuple(args.set)) for m in args.methods]
         if peer:
             if f.suffix.lower() == ".json":
                 jobs += [("peer", f, m, label, ()) for m in PEER_METHODS]

@@ -11,7 +11,7 @@ from pathlib import Path
 
 from ..errors import ConfigError
 from . import report
-from .report import PHASE_SHORT, _int, _num, format_table, is_loaded
+from .report import PHASE_SHORT, fmt_int, fmt_num, format_table, is_loaded
 from .runs import log
 from .scenes import scaling_count, scaling_dt_max, scaling_overrides, scaling_peer_scene
 
@@ -122,7 +122,7 @@ def scaling_table(rows: list[dict], markdown: bool, max_load: float) -> str:
     for r in rows:
         if r.get("error"):
             body.append(
-                [r["label"], _int(r.get("target")), "—", "—", "failed: " + r["error"].splitlines()[0]]
+                [r["label"], fmt_int(r.get("target")), "—", "—", "failed: " + r["error"].splitlines()[0]]
                 + ["—"] * (len(SCALING_HEADERS) - 5)
             )
             continue
@@ -130,19 +130,19 @@ def scaling_table(rows: list[dict], markdown: bool, max_load: float) -> str:
         body.append(
             [
                 label,
-                _int(r.get("fluid")),
-                _int(r.get("boundary")),
-                _int(r.get("timed_steps")),
-                _num(r.get("ms_step")),
-                _num(r.get("us_particle_step"), "{:.3f}"),
-                f"{_num(r.get('iters_mean'), '{:.1f}')} / {_num(r.get('div_iters_mean'), '{:.1f}')}",
-                _num(r.get("err_mean"), "{:.2g}"),
-                _num(r.get("bytes_rss"), "{:.0f}"),
-                _num(r.get("bytes_solver"), "{:.0f}"),
-                _num(r.get("bytes_pair_cache"), "{:.0f}"),
-                _num(r.get("rss_mb"), "{:.0f}"),
-                _num(r.get("setup_s"), "{:.1f}"),
-                _num(r.get("others_cores")),
+                fmt_int(r.get("fluid")),
+                fmt_int(r.get("boundary")),
+                fmt_int(r.get("timed_steps")),
+                fmt_num(r.get("ms_step")),
+                fmt_num(r.get("us_particle_step"), "{:.3f}"),
+                f"{fmt_num(r.get('iters_mean'), '{:.1f}')} / {fmt_num(r.get('div_iters_mean'), '{:.1f}')}",
+                fmt_num(r.get("err_mean"), "{:.2g}"),
+                fmt_num(r.get("bytes_rss"), "{:.0f}"),
+                fmt_num(r.get("bytes_solver"), "{:.0f}"),
+                fmt_num(r.get("bytes_pair_cache"), "{:.0f}"),
+                fmt_num(r.get("rss_mb"), "{:.0f}"),
+                fmt_num(r.get("setup_s"), "{:.1f}"),
+                fmt_num(r.get("others_cores")),
             ]
         )
     return format_table(SCALING_HEADERS, body, markdown)
@@ -171,22 +171,22 @@ def backend_scaling_table(rows: list[dict], markdown: bool, max_load: float) -> 
         where = f"{r.get('backend', '?')} {r.get('precision', '')}".strip()
         if r.get("error"):
             body.append(
-                [where, r["label"], _int(r.get("target")), "—", "failed: " + r["error"].splitlines()[0]]
+                [where, r["label"], fmt_int(r.get("target")), "—", "failed: " + r["error"].splitlines()[0]]
                 + ["—"] * (len(headers) - 5)
             )
             continue
         label = r["label"] + (" [loaded]" if is_loaded(r, max_load) else "")
         ph = r.get("phases") or {}
         body.append(
-            [where, label, _int(r.get("fluid")), _int(r.get("timed_steps")), _num(r.get("ms_step"))]
-            + [_num(ph.get(p)) for p in phases]
+            [where, label, fmt_int(r.get("fluid")), fmt_int(r.get("timed_steps")), fmt_num(r.get("ms_step"))]
+            + [fmt_num(ph.get(p)) for p in phases]
             + [
-                _num(r.get("ns_particle_step"), "{:.1f}"),
-                _num(r.get("bytes_solver"), "{:.0f}"),
-                _num(r.get("bytes_device_used"), "{:.0f}"),
-                _num(r.get("wall_per_sim"), "{:.1f}"),
-                _num(r.get("err_mean"), "{:.2g}"),
-                _num(r.get("others_cores")),
+                fmt_num(r.get("ns_particle_step"), "{:.1f}"),
+                fmt_num(r.get("bytes_solver"), "{:.0f}"),
+                fmt_num(r.get("bytes_device_used"), "{:.0f}"),
+                fmt_num(r.get("wall_per_sim"), "{:.1f}"),
+                fmt_num(r.get("err_mean"), "{:.2g}"),
+                fmt_num(r.get("others_cores")),
             ]
         )
     return format_table(headers, body, markdown)

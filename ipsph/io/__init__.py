@@ -49,7 +49,10 @@ __all__ = [
     "check_writable",
     "BODIES_DIR",
     "BODIES_CSV",
+    "CHECKPOINT_FILE",
     "bodies_file",
+    "render_file",
+    "video_file",
 ]
 
 RUN_PVD = "run.pvd"
@@ -123,6 +126,16 @@ def frame_file(index: int) -> str:
 def bodies_file(index: int) -> str:
     """Relative path of the moving walls' surfaces of frame `index`."""
     return f"{BODIES_DIR}/bodies_{index:06d}.vtp"
+
+
+def render_file(index: int) -> str:
+    """Relative path of the PNG render of frame `index`."""
+    return f"{RENDERS_DIR}/frame_{index:06d}.png"
+
+
+def video_file(fmt: str) -> str:
+    """File name of the video of the renders (fmt: mp4 | gif)."""
+    return f"video.{fmt}"
 
 
 def surface_file(index: int, fmt: str = "vtp") -> str:

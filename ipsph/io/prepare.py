@@ -40,7 +40,7 @@ def check_output_folder(out: Path, overwrite: bool, resume: bool) -> None:
 
 
 # Everything a run (and `ipsph render` / `ipsph plot` into it) writes: --overwrite removes all of it.
-WRITTEN_DIRS = (io.FRAMES_DIR, io.RENDERS_DIR, io.PLOTS_DIR, io.SURFACES_DIR)
+WRITTEN_DIRS = (io.FRAMES_DIR, io.RENDERS_DIR, io.PLOTS_DIR, io.SURFACES_DIR, io.BODIES_DIR)
 WRITTEN_FILES = (
     io.RUN_PVD,
     io.BOUNDARY_VTU,
@@ -48,8 +48,9 @@ WRITTEN_FILES = (
     io.STATS_CSV,
     io.RUN_JSON,
     io.CHECKPOINT_FILE,
-    "video.mp4",
-    "video.gif",
+    io.BODIES_CSV,
+    io.video_file("mp4"),
+    io.video_file("gif"),
     io.PARAVIEW_SCRIPT,
     *(p.series for p in io.PARTS if p.series),
 )

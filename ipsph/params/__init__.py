@@ -11,8 +11,8 @@
 The declarations, by topic: facts.py (the facts that are not keys), schema.py (`Param`), and
 the keys: run_keys.py ([simulation], [time_step], [solver.*]), output_keys.py ([output],
 [render], [surface]), body_keys.py ([[fluid]], [[boundary]]), flow_keys.py ([[emitter]],
-[[sink]], [domain]). Adding a scene key: one `_P(...)` entry in its table's file (and, for
-[[fluid]]/[[boundary]]/[[emitter]] keys, the field it lands in, in `ipsph.config`), then
+[[sink]], [domain]). Adding a scene key: one `_P(...)` entry in its table's file (the field it
+lands in, reading and writing it follow from the entry), then
 `python -m ipsph.scene > docs/scene-reference.md`.
 
 This module imports nothing from ipsph, so everything may import it.
@@ -25,12 +25,14 @@ from typing import Any
 from . import body_keys, flow_keys, output_keys, run_keys
 from .facts import (  # noqa: F401 - re-exported: every module reads its facts from ipsph.params
     AUTO,
+    AUTO_DT_MAX,
     BACKEND_NAMES,
     BOUNDARY_MODELS,
     BOUNDARY_ROLES,
     BYTES_PER_PARTICLE,
     COURANT,
     METHOD_NAMES,
+    MOTION_KEYS,
     MOTION_TYPES,
     OUTPUT_FIELDS,
     PHASES,
@@ -43,6 +45,7 @@ from .facts import (  # noqa: F401 - re-exported: every module reads its facts f
     VISCOSITY_MODELS,
     VISCOSITY_WALLS,
     VISCOUS_STEP,
+    auto_dt_max,
     spacing,
     support,
 )

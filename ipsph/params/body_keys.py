@@ -1,4 +1,9 @@
-"""The [[fluid]] and [[boundary]] keys (placement, motion, rigid bodies)."""
+"""The [[fluid]] and [[boundary]] keys (placement, motion, rigid bodies).
+
+Each key's value lands on the FluidSpec / BoundarySpec attribute its target names; reading
+(ipsph.scene.validate) and writing (ipsph.scene.serialise) go through every key of the table, so
+a new key is one line here. What only some bodies take is declared below the table.
+"""
 
 from __future__ import annotations
 
@@ -80,7 +85,7 @@ KEYS: tuple[Param, ...] = (
         "by default; a container's mesh may be open anyway, a dynamic body's never.",
         "allow_open_mesh",
     ),
-    # -- [[boundary]] motion and rigid bodies (ipsph/boundary/motion.py, ipsph/rigid.py; method.md section 9) ----
+    # -- [[boundary]] motion and rigid bodies (ipsph/boundary/motion.py, ipsph/boundary/rigid.py; method.md section 9)
     _P(
         "boundary.motion.type",
         "choice",
@@ -217,3 +222,8 @@ KEYS: tuple[Param, ...] = (
         hi=1e5,
     ),
 )
+
+# Keys only some bodies take: a scene that gives them elsewhere is refused, and run.json leaves them
+# out there. A box's translate and scale are folded into its corners (boxes do not rotate).
+MESH_ONLY: tuple[str, ...] = ("fluid.allow_open_mesh", "boundary.allow_open_mesh")
+DYNAMIC_ONLY: tuple[str, ...] = ("boundary.velocity", "boundary.angular_velocity")  # a density or mass given

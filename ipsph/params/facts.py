@@ -1,5 +1,5 @@
 """The declared facts that are not scene keys: spacing and support in particle radii, the CFL
-constants, the memory budget, the names of methods, backends, phases, fields, views and modes."""
+constants and the auto dt_max, the memory budget, the names of methods, backends, phases, fields, views and modes."""
 
 from __future__ import annotations
 
@@ -14,6 +14,8 @@ COURANT = 0.4
 # eigenvalue of its operator: 59.6 / H^2 on the lattice (power iteration, method.md section 1).
 # The step keeps half of that margin: dt <= H^2 / (VISCOUS_STEP nu).
 VISCOUS_STEP = 60.0
+# time_step.dt_max's auto value: 5 ms at r = 0.025 m, in proportion to r (auto_dt_max)
+AUTO_DT_MAX = "5 ms * r / 0.025 m"
 
 
 def spacing(r: float) -> float:
@@ -24,6 +26,11 @@ def spacing(r: float) -> float:
 def support(r: float) -> float:
     """The kernel support H = 4 r."""
     return SUPPORT_RADII * r
+
+
+def auto_dt_max(r: float) -> float:
+    """time_step.dt_max when left auto: AUTO_DT_MAX."""
+    return 0.005 * r / 0.025
 
 
 BYTES_PER_PARTICLE = 1024  # the solver's memory budget per fluid particle (docs/performance.md)
@@ -49,7 +56,15 @@ VISCOSITY_MODELS = ("xsph", "standard", "implicit")  # simulation.viscosity_mode
 VISCOSITY_WALLS = ("no-slip", "free-slip")  # simulation.viscosity_walls: the implicit model's wall friction
 SETTLE_MODES = ("auto", "on", "off")  # simulation.settle: the pre-pass before t = 0
 BOUNDARY_ROLES = ("container", "obstacle")  # boundary.role: fluid inside the surface, or around it
-MOTION_TYPES = ("static", "constant", "sinusoid", "keyframes")  # boundary.motion.type (ipsph/boundary/motion.py)
+# boundary.motion.type (ipsph/boundary/motion.py) and the [boundary.motion] keys each type takes besides
+# `type`: a scene that gives another is refused, and run.json writes these
+MOTION_KEYS: dict[str, tuple[str, ...]] = {
+    "static": (),
+    "constant": ("velocity", "angular_velocity", "pivot"),
+    "sinusoid": ("axis", "amplitude", "angle_amplitude", "period", "phase_deg", "pivot"),
+    "keyframes": ("keyframes", "pivot"),
+}
+MOTION_TYPES = tuple(MOTION_KEYS)
 OUTPUT_FIELDS = ("velocity", "density", "pressure", "mass", "id")
 # render.view: direction from the focal point to the camera, and the view-up vector (y is up)
 RENDER_VIEWS: dict[str, tuple[tuple[float, float, float], tuple[float, float, float]]] = {

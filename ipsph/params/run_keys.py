@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from .schema import Param, _P, _limits
 from .facts import (
+    AUTO_DT_MAX,
     BACKEND_NAMES,
     BOUNDARY_MODELS,
     METHOD_NAMES,
@@ -222,7 +223,7 @@ KEYS: tuple[Param, ...] = (
         "float",
         None,
         "s",
-        "Largest time step. auto: 5 ms * r / 0.025 m.",
+        f"Largest time step. auto: {AUTO_DT_MAX}.",
         lo=0.0,
         hi=1.0,
         lo_open=True,

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import OutputError
+from ..io import PLOTS_DIR, RUN_JSON, STATS_CSV
 from ..params import PHASES as _PHASES
 
 __all__ = ["plot_runs", "PHASES"]
@@ -24,9 +25,9 @@ def _label(out: Path) -> str:
     from ..io.provenance import read_run_json
 
     method = None
-    if (out / "run.json").is_file():
+    if (out / RUN_JSON).is_file():
         try:
-            method = read_run_json(out / "run.json").get("method")
+            method = read_run_json(out / RUN_JSON).get("method")
         except OutputError:
             method = None
     name = out.resolve().name
@@ -52,10 +53,10 @@ def plot_runs(out_dirs, output_dir: Path | None = None, *, dpi: int = 110) -> li
         raise OutputError("plot_runs needs at least one output folder")
     runs = []
     for d in dirs:
-        if not (d / "stats.csv").is_file():
-            raise OutputError(f"{d} (resolved {d.resolve()}) has no stats.csv; give a folder written by `ipsph run`")
-        runs.append((_label(d), read_stats(d / "stats.csv")))
-    target = Path(output_dir) if output_dir is not None else dirs[0] / "plots"
+        if not (d / STATS_CSV).is_file():
+            raise OutputError(f"{d} (resolved {d.resolve()}) has no {STATS_CSV}; give a folder written by `ipsph run`")
+        runs.append((_label(d), read_stats(d / STATS_CSV)))
+    target = Path(output_dir) if output_dir is not None else dirs[0] / PLOTS_DIR
     target.mkdir(parents=True, exist_ok=True)
     colours = plt.get_cmap("tab10").colors
     written = []

@@ -117,20 +117,20 @@ class RunFolder:
         """On --resume with renders: the earlier frames without a render (an interrupt, --no-render or a
         missing GL stack cut them short) are queued first, from their VTU files; when the frames hold
         no velocity field (or the renderer fails), one line says how to make them."""
-        missing = [k for k in range(self.frames) if not (self.out / io.RENDERS_DIR / f"frame_{k:06d}.png").is_file()]
+        missing = [k for k in range(self.frames) if not (self.out / io.render_file(k)).is_file()]
         if not missing or self.renderer is None:  # --no-render: no renders wanted now
             return
         if "velocity" in self.fields:
             for k in missing:
                 x, fields, t = vtu.read_particles(self.out / io.frame_file(k))
-                png = self.out / io.RENDERS_DIR / f"frame_{k:06d}.png"
+                png = self.out / io.render_file(k)
                 if not self.renderer.submit(x, fields["velocity"], png, float(t or 0.0)):
                     self._render_failed()
                     break
             else:
                 print(
                     f"ipsph: note: rendering the {len(missing)} earlier frames that have no render "
-                    f"({io.RENDERS_DIR}/frame_{missing[0]:06d}.png ...)",
+                    f"({io.render_file(missing[0])} ...)",
                     file=sys.stderr,
                 )
                 return
@@ -226,7 +226,7 @@ class RunFolder:
         if self.surfacer is not None:  # after the frame is on disk; never waits for the surface process
             self.surfacer.submit(self.frames, sim.time, sim.positions, sim.velocities, _warn)
         if self.renderer is not None and self.scene.render.mode != "surface":
-            png = self.out / io.RENDERS_DIR / f"frame_{self.frames:06d}.png"
+            png = self.out / io.render_file(self.frames)
             if not self.renderer.submit(
                 sim.positions, sim.velocities, png, sim.time, *(self.out / m for m in moving.values())
             ):
@@ -256,7 +256,7 @@ class RunFolder:
         for index, t, name in done:
             self.pvd.add_surface(t, name)
             if self.renderer is not None and self.scene.render.mode == "surface":
-                png = self.out / io.RENDERS_DIR / f"frame_{index:06d}.png"
+                png = self.out / io.render_file(index)
                 if not self.renderer.submit_surface(self.out / name, png, t):
                     self._render_failed()
         return bool(done)

@@ -25,8 +25,10 @@ import subprocess
 import sys
 from pathlib import Path
 
+from ..params import METHOD_NAMES
+
 SIGNATURES_FILE = Path(__file__).with_name("jit_signatures.json")
-METHODS = ("ipsph", "pf", "dfsph")
+METHODS = METHOD_NAMES  # the methods whose kernels the signature file records
 
 
 def _types_namespace() -> dict:

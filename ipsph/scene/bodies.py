@@ -1,13 +1,15 @@
-"""Validation of a [[boundary]]'s motion and rigid-body keys (model.MotionSpec, BoundarySpec's
+"""Validation of a [[boundary]]'s motion and rigid-body keys (config.MotionSpec, BoundarySpec's
 density / mass): the rules PARAMS' ranges cannot say. Every error is one line naming the key
-(exit 2), raised while the scene is read, before anything is sampled or allocated."""
+(exit 2), raised while the scene is read, before anything is sampled or allocated. `applies`:
+which [[fluid]] / [[boundary]] keys belong in which body's table."""
 
 from __future__ import annotations
 
 from typing import Any
 
 from ..config import Keyframe, MotionSpec, Role
-from ..params import PARAM_BY_PATH
+from ..params import MOTION_KEYS, PARAM_BY_PATH
+from ..params.body_keys import DYNAMIC_ONLY, MESH_ONLY
 from .text import _fmt, _show
 
 _KEYFRAME_KEYS = ("time", "translate", "rotate_axis", "rotate_deg")
@@ -64,29 +66,14 @@ def _vec(ctx, v, shown) -> tuple[float, float, float]:
     return tuple(_num(ctx, c, f"{shown}[{i}]") for i, c in enumerate(v))
 
 
-def boundary_extras(ctx, prefix: str, vals: dict, role: Role, shape: str, mesh) -> dict:
-    """BoundarySpec's motion, density, mass and initial velocities from the validated values
-    `vals` (PARAMS paths -> values), with the cross-key rules."""
+def boundary_motion(ctx, prefix: str, vals: dict, shape: str, mesh):
+    """A wall's MotionSpec from the validated values `vals` (PARAMS paths -> values), after the rules
+    between its motion and rigid-body keys (density, mass and the initial velocities land on the
+    BoundarySpec by their targets, like every other key)."""
     g = lambda key: vals.get(f"boundary.{key}", PARAM_BY_PATH[f"boundary.{key}"].default)  # noqa
     given = {k.split(".", 2)[2] for k in vals if k.startswith("boundary.motion.")}
     mt = g("motion.type")
-    motion = MotionSpec(
-        **{
-            f: g(f"motion.{f}")
-            for f in (
-                "type",
-                "velocity",
-                "angular_velocity",
-                "pivot",
-                "axis",
-                "amplitude",
-                "angle_amplitude",
-                "period",
-                "phase_deg",
-                "keyframes",
-            )
-        }
-    )
+    motion = MotionSpec(**{k.split(".", 2)[2]: v for k, v in vals.items() if k.startswith("boundary.motion.")})
     mp = f"{prefix}.motion"
     if given and mt == "static" and given != {"type"}:
         raise ctx.fail(
@@ -94,12 +81,7 @@ def boundary_extras(ctx, prefix: str, vals: dict, role: Role, shape: str, mesh) 
             f"is static (the default) but {', '.join(sorted(given - {'type'}))} "
             f'given: set type = "constant", "sinusoid" or "keyframes"',
         )
-    allowed = {
-        "static": {"type"},
-        "constant": {"type", "velocity", "angular_velocity", "pivot"},
-        "sinusoid": {"type", "axis", "amplitude", "angle_amplitude", "period", "phase_deg", "pivot"},
-        "keyframes": {"type", "keyframes", "pivot"},
-    }[mt]
+    allowed = {"type", *MOTION_KEYS[mt]}
     for key in sorted(given - allowed):
         raise ctx.fail(
             f"{mp}.{key}", f"does not apply to motion type {mt!r} (it takes: {', '.join(sorted(allowed - {'type'}))})"
@@ -115,16 +97,19 @@ def boundary_extras(ctx, prefix: str, vals: dict, role: Role, shape: str, mesh) 
         raise ctx.fail(f"{mp}.keyframes", f"needs at least 2 keyframes, got {len(motion.keyframes)}")
     density, mass = g("density"), g("mass")
     dynamic = density is not None or mass is not None
-    if g("allow_open_mesh") and (shape != "mesh" or role != Role.OBSTACLE or dynamic):
+    role = getattr(g("role"), "value", g("role"))  # "container" or "obstacle"
+    if g("allow_open_mesh") and (shape != "mesh" or role != Role.OBSTACLE.value or dynamic):
         why = (
             "a dynamic body needs a closed surface" if dynamic and shape == "mesh" else "applies to mesh obstacles only"
         )
-        if role == Role.CONTAINER and shape == "mesh":
+        if role == Role.CONTAINER.value and shape == "mesh":
             why += " (a container's mesh may be open already)"
         raise ctx.fail(f"{prefix}.allow_open_mesh", why)
-    for key in ("velocity", "angular_velocity"):
-        if f"boundary.{key}" in vals and not dynamic:
-            raise ctx.fail(f"{prefix}.{key}", "is a dynamic body's initial velocity: give density or mass too")
+    for path in DYNAMIC_ONLY:
+        if path in vals and not dynamic:
+            raise ctx.fail(
+                f"{prefix}.{path.split('.', 1)[1]}", "is a dynamic body's initial velocity: give density or mass too"
+            )
     if dynamic:
         if density is not None and mass is not None:
             raise ctx.fail(f"{prefix}.mass", "give density or mass, not both")
@@ -134,7 +119,7 @@ def boundary_extras(ctx, prefix: str, vals: dict, role: Role, shape: str, mesh) 
                 f"{mt!r}: a dynamic body (density or mass given) moves as the "
                 f"forces say; a prescribed motion is for kinematic walls",
             )
-        if role != Role.OBSTACLE:
+        if g("role") != Role.OBSTACLE:
             raise ctx.fail(
                 f"{prefix}.role",
                 'a dynamic body must be an obstacle (the fluid flows around it): set role = "obstacle"',
@@ -151,11 +136,18 @@ def boundary_extras(ctx, prefix: str, vals: dict, role: Role, shape: str, mesh) 
                     f"{open_edges} open or unpaired edges in {mesh}, one at {fmt_point(unpaired_edge_at(surface))} "
                     f"(the file's coordinates); repair the mesh",
                 )
-    return {
-        "motion": motion,
-        "density": density,
-        "mass": mass,
-        "velocity": g("velocity"),
-        "angular_velocity": g("angular_velocity"),
-        "allow_open_mesh": g("allow_open_mesh"),
-    }
+    return motion
+
+
+def applies(path: str, spec) -> bool:
+    """Whether the [[fluid]] / [[boundary]] key `path` (a PARAMS path) belongs in `spec`'s table: what
+    a scene may give for it, and what run.json writes (ipsph.scene.serialise)."""
+    target = PARAM_BY_PATH[path].target
+    if target.startswith("transform.") or path in MESH_ONLY:
+        return spec.shape == "mesh"  # a box's placement is folded into its corners
+    if path in DYNAMIC_ONLY:
+        return spec.dynamic
+    if target.startswith("motion."):
+        mt = spec.motion.type
+        return mt != "static" and target.split(".", 1)[1] in ("type", *MOTION_KEYS[mt])
+    return True

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import dataclasses
 from enum import Enum
 from pathlib import Path
 from typing import Any
 
 from ..config import Scene, Transform
 from ..params import PARAMS
+from .bodies import applies
 from .validate import ENTITIES, set_path
 
 
@@ -56,6 +58,8 @@ def _get_attr(obj: Any, target: str) -> Any:
 
 
 def _plain(v: Any) -> Any:
+    if dataclasses.is_dataclass(v):  # a keyframe
+        return {f.name: _plain(getattr(v, f.name)) for f in dataclasses.fields(v)}
     if isinstance(v, Enum):
         return v.value
     if isinstance(v, Path):
@@ -66,66 +70,21 @@ def _plain(v: Any) -> Any:
 
 
 def _entity_to_dict(kind: str, e) -> dict:
-    d: dict = {"name": e.name}
-    if kind == "boundary":
-        d["role"] = _plain(e.role)
-    tf = e.transform
-    if e.shape == "box":
-        lo, hi = e.box_min, e.box_max
-        if tf != Transform():
-            if tf.rotate_deg != 0.0:
-                raise ValueError(
-                    f"{kind} {e.name!r}: a box with a rotation cannot be written "
-                    f"in the scene format (boxes are axis-aligned)"
-                )
-            lo = tuple(s * c + t for s, c, t in zip(tf.scale, lo, tf.translate))
-            hi = tuple(s * c + t for s, c, t in zip(tf.scale, hi, tf.translate))
-        d["box"] = {"min": _plain(lo), "max": _plain(hi)}
-    else:
-        d["mesh"] = str(e.mesh)
-        d["translate"] = _plain(tf.translate)
-        d["scale"] = _plain(tf.scale)
-        d["rotate_axis"] = _plain(tf.rotate_axis)
-        d["rotate_deg"] = tf.rotate_deg
-        if kind == "fluid" or e.allow_open_mesh:  # a wall's only when set (an obstacle's)
-            d["allow_open_mesh"] = e.allow_open_mesh
-    if kind == "fluid":
-        d["velocity"] = _plain(e.velocity)
-    else:
-        d.update(_motion_to_dict(e))
-    return d
-
-
-def _motion_to_dict(b) -> dict:
-    """A boundary's motion and rigid-body keys (only those that differ from a static wall)."""
+    """A [[fluid]] or [[boundary]] table: every declared key of `kind` that applies to `e`
+    (`bodies.applies`), by its target, None left out; a box with its placement folded into its corners."""
     d: dict = {}
-    m = b.motion
-    if m.type != "static":
-        md = {"type": m.type}
-        keys = {
-            "constant": ("velocity", "angular_velocity", "pivot"),
-            "sinusoid": ("axis", "amplitude", "angle_amplitude", "period", "phase_deg", "pivot"),
-            "keyframes": ("pivot",),
-        }[m.type]
-        for k in keys:
-            if getattr(m, k) is not None:
-                md[k] = _plain(getattr(m, k))
-        if m.type == "keyframes":
-            md["keyframes"] = [
-                {
-                    "time": k.time,
-                    "translate": _plain(k.translate),
-                    "rotate_axis": _plain(k.rotate_axis),
-                    "rotate_deg": k.rotate_deg,
-                }
-                for k in m.keyframes
-            ]
-        d["motion"] = md
-    if b.dynamic:
-        if b.density is not None:
-            d["density"] = b.density
-        else:
-            d["mass"] = b.mass
-        d["velocity"] = _plain(b.velocity)
-        d["angular_velocity"] = _plain(b.angular_velocity)
+    for p in PARAMS:
+        if p.path.startswith(kind + ".") and applies(p.path, e):
+            value = _get_attr(e, p.target)
+            if value is not None:
+                set_path(d, p.path.split(".", 1)[1], _plain(value))
+    tf = e.transform
+    if e.shape == "box" and tf != Transform():
+        if tf.rotate_deg != 0.0:
+            raise ValueError(
+                f"{kind} {e.name!r}: a box with a rotation cannot be written in the scene format (boxes are axis-aligned)"
+            )
+        lo = [s * c + t for s, c, t in zip(tf.scale, e.box_min, tf.translate)]
+        hi = [s * c + t for s, c, t in zip(tf.scale, e.box_max, tf.translate)]
+        d["box"] = {"min": lo, "max": hi}
     return d

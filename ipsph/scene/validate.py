@@ -18,20 +18,20 @@ from typing import Any
 
 from ..errors import ConfigError, read_text
 from ..config import (
+    ENUMS,
     BoundarySpec,
     DomainConfig,
     FluidSpec,
-    Method,
     OutputConfig,
     RenderConfig,
-    Role,
     Scene,
     SolverConfig,
     SurfaceConfig,
     TimeStepConfig,
     Transform,
 )
-from ..params import PARAM_BY_PATH, PARAMS, Param, default, spacing
+from ..params import AUTO_DT_MAX, PARAM_BY_PATH, PARAMS, Param, default, spacing
+from ..params.body_keys import MESH_ONLY
 from .text import _fmt, _fmt_vec, _show, _tname
 from .values import (  # noqa: F401 - ENTITIES, ENTITY_TABLE, renamed_error: read from here too
     ENTITIES,
@@ -122,7 +122,7 @@ def _build_scene(data: dict, base_dir: Path, name: str | None, source: Path | No
     elif kw.get("source") is not None:
         kw["source"] = Path(kw["source"])
     if "method" in kw:
-        kw["method"] = Method(kw["method"])
+        kw["method"] = ENUMS["simulation.method"](kw["method"])
     if "folder" in kw.get("output", {}):
         kw["output"]["folder"] = Path(kw["output"]["folder"]).expanduser()
     sections = {
@@ -194,7 +194,7 @@ def _check_sections(ctx: _Ctx, ts: TimeStepConfig, sv: SolverConfig, rd: RenderC
         src = (
             "time_step.dt_max"
             if ts.dt_max is not None
-            else f"time_step.dt_max (auto: 5 ms * r / 0.025 m = {_fmt(dt_max)} s)"
+            else f"time_step.dt_max (auto: {AUTO_DT_MAX} = {_fmt(dt_max)} s)"
         )
         raise ctx.fail("time_step.dt_min", f"{_fmt(ts.dt_min)} s is larger than {src}; lower dt_min or raise dt_max")
     if ts.dt_initial is not None and not ts.dt_min <= ts.dt_initial <= dt_max:
@@ -223,11 +223,16 @@ def _entity_list(ctx: _Ctx, data: dict, kind: str) -> list:
 
 
 def _entity(ctx: _Ctx, kind: str, i: int, entry: dict, base_dir: Path, r: float):
+    """A [[fluid]] or [[boundary]] table as its spec: every given value lands where its key's target
+    says (params.body_keys), the rest keep the spec's declared defaults; a box's placement is folded
+    into its corners."""
     prefix = f"{kind}[{i}]"
     vals: dict[str, Any] = {}
     _walk(ctx, entry, _ENTITY_TREES[kind], prefix, vals)
-    g = lambda key: vals.get(f"{kind}.{key}", PARAM_BY_PATH[f"{kind}.{key}"].default)  # noqa
-    name = vals.get(f"{kind}.name") or f"{kind}{i}"
+    kw: dict[str, Any] = {}
+    for path, v in vals.items():
+        set_path(kw, PARAM_BY_PATH[path].target, ENUMS[path](v) if path in ENUMS else v)
+    kw["name"] = kw.get("name") or f"{kind}{i}"
     has_box, has_mesh = "box" in entry, "mesh" in entry
     if has_box == has_mesh:
         raise ctx.fail(
@@ -235,68 +240,55 @@ def _entity(ctx: _Ctx, kind: str, i: int, entry: dict, base_dir: Path, r: float)
             "give exactly one shape: box = {min = [x, y, z], max = "
             '[x, y, z]} or mesh = "file.obj"' + (", not both" if has_box else ""),
         )
-    t, s = g("translate"), g("scale")
-    axis, deg = g("rotate_axis"), g("rotate_deg")
-    if not any(axis):
+    tf = Transform(**kw.pop("transform", {}))
+    if not any(tf.rotate_axis):
         raise ctx.fail(f"{prefix}.rotate_axis", "must not be the zero vector")
-    extra: dict[str, Any] = {}
-    if kind == "fluid":
-        extra["velocity"] = g("velocity")
-    else:
-        extra["role"] = Role(g("role"))
-        if has_mesh:
-            mesh_given = _resolve_mesh(ctx, f"{prefix}.mesh", vals[f"{kind}.mesh"], base_dir)
-        from .bodies import boundary_extras  # motion, rigid bodies
+    shape = "box" if has_box else "mesh"
+    mesh = _resolve_mesh(ctx, f"{prefix}.mesh", vals[f"{kind}.mesh"], base_dir) if has_mesh else None
+    if kind == "boundary":
+        from .bodies import boundary_motion  # motion, rigid bodies: the rules between their keys
 
-        extra.update(
-            boundary_extras(
-                ctx, prefix, vals, extra["role"], "mesh" if has_mesh else "box", mesh_given if has_mesh else None
-            )
+        kw["motion"] = boundary_motion(ctx, prefix, vals, shape, mesh)
+    cls = FluidSpec if kind == "fluid" else BoundarySpec
+    if has_mesh:
+        return cls(**{**kw, "shape": shape, "mesh": mesh, "transform": tf})
+    for end in ("min", "max"):
+        if f"{kind}.box.{end}" not in vals:
+            raise ctx.fail(f"{prefix}.box", f"missing {end} = [x, y, z]")
+    if tf.rotate_deg != 0.0:
+        raise ctx.fail(
+            f"{prefix}.rotate_deg",
+            f"{_fmt(tf.rotate_deg)}: boxes are axis-aligned and cannot be rotated; use a mesh (e.g. a box .obj) to rotate",
         )
-    if has_box:
-        for end in ("min", "max"):
-            if f"{kind}.box.{end}" not in vals:
-                raise ctx.fail(f"{prefix}.box", f"missing {end} = [x, y, z]")
-        if deg != 0.0:
+    for path in MESH_ONLY:
+        if path in vals:
+            raise ctx.fail(f"{prefix}.{path.split('.', 1)[1]}", f"applies to mesh {kind}s only")
+    lo_given, hi_given = kw.pop("box_min"), kw.pop("box_max")
+    t, s = tf.translate, tf.scale
+    lo = tuple(si * c + ti for si, c, ti in zip(s, lo_given, t))
+    hi = tuple(si * c + ti for si, c, ti in zip(s, hi_given, t))
+    note = (
+        ""
+        if (t, s) == (_Z3, (1.0, 1.0, 1.0))
+        else f" (after scale and translate: min {_fmt_vec(lo)}, max {_fmt_vec(hi)})"
+    )
+    for a in range(3):
+        if not lo[a] < hi[a]:
             raise ctx.fail(
-                f"{prefix}.rotate_deg",
-                f"{_fmt(deg)}: boxes are axis-aligned and cannot be rotated; use a mesh (e.g. a box .obj) to rotate",
+                f"{prefix}.box", f"min {_fmt_vec(lo_given)} must be < max {_fmt_vec(hi_given)} on every axis{note}"
             )
-        if kind == "fluid" and f"{kind}.allow_open_mesh" in vals:
-            raise ctx.fail(f"{prefix}.allow_open_mesh", "applies to mesh fluids only")
-        lo_given, hi_given = vals[f"{kind}.box.min"], vals[f"{kind}.box.max"]
-        lo = tuple(si * c + ti for si, c, ti in zip(s, lo_given, t))
-        hi = tuple(si * c + ti for si, c, ti in zip(s, hi_given, t))
-        note = (
-            ""
-            if (t, s) == (_Z3, (1.0, 1.0, 1.0))
-            else f" (after scale and translate: min {_fmt_vec(lo)}, max {_fmt_vec(hi)})"
-        )
-        for a in range(3):
-            if not lo[a] < hi[a]:
-                raise ctx.fail(
-                    f"{prefix}.box", f"min {_fmt_vec(lo_given)} must be < max {_fmt_vec(hi_given)} on every axis{note}"
-                )
-        if kind == "fluid":
-            n = lattice_counts(lo, hi, r)
-            if min(n) < 1:
-                a = n.index(min(n))
-                raise ctx.fail(
-                    f"{prefix}.box",
-                    f"extent {_fmt(hi[a] - lo[a])} m along "
-                    f"{'xyz'[a]} holds no particle at particle_radius {_fmt(r)} m "
-                    f"(round(extent / 2r) - 1 = {n[a]}); need an extent of at "
-                    f"least 3r = {_fmt(3 * r)} m",
-                )
-        cls = FluidSpec if kind == "fluid" else BoundarySpec
-        return cls(name=name, shape="box", box_min=lo, box_max=hi, **extra)
-    given = vals[f"{kind}.mesh"]
-    mesh = _resolve_mesh(ctx, f"{prefix}.mesh", given, base_dir)
-    tf = Transform(translate=t, scale=s, rotate_axis=axis, rotate_deg=deg)
     if kind == "fluid":
-        extra["allow_open_mesh"] = g("allow_open_mesh")
-        return FluidSpec(name=name, shape="mesh", mesh=mesh, transform=tf, **extra)
-    return BoundarySpec(name=name, shape="mesh", mesh=mesh, transform=tf, **extra)
+        n = lattice_counts(lo, hi, r)
+        if min(n) < 1:
+            a = n.index(min(n))
+            raise ctx.fail(
+                f"{prefix}.box",
+                f"extent {_fmt(hi[a] - lo[a])} m along "
+                f"{'xyz'[a]} holds no particle at particle_radius {_fmt(r)} m "
+                f"(round(extent / 2r) - 1 = {n[a]}); need an extent of at "
+                f"least 3r = {_fmt(3 * r)} m",
+            )
+    return cls(**{**kw, "shape": shape, "box_min": lo, "box_max": hi})
 
 
 def _resolve_mesh(ctx: _Ctx, key: str, given: str, base_dir: Path) -> Path:

@@ -31,6 +31,8 @@ import threading
 import time
 from pathlib import Path
 
+from ..io import CHECKPOINT_FILE, RUN_JSON
+
 LOCK_FILE = ".sweep.lock"
 LOG_FILE = "sweep-member.log"
 PID_FILE = ".sweep-member.pid"
@@ -87,12 +89,12 @@ def _read_json(path: Path) -> dict | None:
 
 def folder_state(folder: Path) -> str:
     """completed | checkpoint (an unfinished run with a checkpoint) | started (an unfinished run) | empty."""
-    info = _read_json(folder / "run.json")
+    info = _read_json(folder / RUN_JSON)
     if info is None:
         return "empty"
     if info.get("completed"):
         return "completed"
-    return "checkpoint" if (folder / "checkpoint.npz").is_file() else "started"
+    return "checkpoint" if (folder / CHECKPOINT_FILE).is_file() else "started"
 
 
 def _error_line(log_tail: str) -> str | None:
@@ -143,7 +145,7 @@ def _run_member(job: dict) -> dict:
             return {"name": job["name"], "status": "not started"}
         state = folder_state(folder)
         if state == "completed":  # an earlier attempt finished just before its worker died
-            info = _read_json(folder / "run.json") or {}
+            info = _read_json(folder / RUN_JSON) or {}
             return _record(
                 job, "completed", 0, None, info, threads, host, _attempts(folder / LOG_FILE), 0.0, waited, resumed=False
             )
@@ -154,7 +156,7 @@ def _run_member(job: dict) -> dict:
             mode = "--overwrite"
             code, wall2, tail = _child(job, folder, lock, threads, mode, attempt, host, note="restart")
             wall += wall2
-        info = _read_json(folder / "run.json") or {}
+        info = _read_json(folder / RUN_JSON) or {}
         if code == 0:
             status, reason = "completed", None
         elif code == 130:

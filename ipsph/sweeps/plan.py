@@ -8,7 +8,7 @@ import shutil
 from pathlib import Path
 
 from ..errors import OutputError
-from ..io import check_writable
+from ..io import RUN_JSON, check_writable
 from . import member as mem
 from . import records
 from .spec import Sweep
@@ -72,7 +72,7 @@ def plan(sweep: Sweep, out: Path, resume: bool, overwrite: bool) -> tuple[list[d
         recs = list(fresh.values())
         if not overwrite:
             for r in recs:
-                if (out / r["name"] / "run.json").exists():
+                if (out / r["name"] / RUN_JSON).exists():
                     raise OutputError(
                         f"{out / r['name']} holds an earlier run that is not part of a sweep in "
                         f"{out}; pass --overwrite to replace it or choose another -o"

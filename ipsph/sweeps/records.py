@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io import atomic_path
+from ..io import PLOTS_DIR, RUN_JSON, STATS_CSV, atomic_path
 from ..io.provenance import to_jsonable, versions
 
 SWEEP_JSON = "sweep.json"
@@ -95,7 +95,7 @@ def member_row(out: Path, rec: dict) -> dict:
         "attempts": rec.get("attempts"),
     }
     try:
-        info = json.loads((folder / "run.json").read_text())
+        info = json.loads((folder / RUN_JSON).read_text())
     except (OSError, ValueError):
         info = {}
     row.update(
@@ -110,7 +110,7 @@ def member_row(out: Path, rec: dict) -> dict:
     if row["wall_seconds"] and row["sim_time"]:
         row["wall_per_sim_second"] = row["wall_seconds"] / row["sim_time"]
     try:
-        s = read_stats(folder / "stats.csv")
+        s = read_stats(folder / STATS_CSV)
     except Exception:  # no stats yet (failed before the first step)
         s = {}
     if len(s.get("step", ())):
@@ -161,12 +161,12 @@ def plot_folders(dirs: list[Path], output: Path | None) -> tuple[list[Path], Pat
         if info is None:
             expanded.append(d)
             continue
-        members = [d / r["name"] for r in info.get("members", []) if (d / r["name"] / "stats.csv").is_file()]
+        members = [d / r["name"] for r in info.get("members", []) if (d / r["name"] / STATS_CSV).is_file()]
         if not members:
-            raise OutputError(f"sweep folder {d} (resolved {d.resolve()}) has no member with stats.csv yet")
+            raise OutputError(f"sweep folder {d} (resolved {d.resolve()}) has no member with {STATS_CSV} yet")
         expanded += members
         if target is None and len(dirs) == 1:
-            target = d / "plots"
+            target = d / PLOTS_DIR
     return expanded, target
 
 

@@ -10,6 +10,7 @@ import numpy as np
 from ...errors import ConfigError, OutputError
 from ...config import RenderConfig
 from ...params import RENDER_MODES
+from ...io import STATS_CSV, render_file, video_file
 from ...io.pvd import frame_index
 from ...io.vtu import read_surface
 from .frame import FrameRenderer
@@ -35,7 +36,7 @@ def _speed_range_for(out: Path, run: dict, frames: list[tuple[float, str]], give
 
     if given is not None:
         return (float(given[0]), float(given[1]))
-    stats = out / "stats.csv"
+    stats = out / STATS_CSV
     if stats.is_file():
         s = read_stats(stats)
         v = s.get("max_speed", np.zeros(0))
@@ -72,7 +73,7 @@ def render_output(
     `mode` = "particles" | "surface" (default: the run's render.mode): "surface" renders
     OUT/surfaces/surface_NNNNNN.vtp, reconstructing first the frames that have none (`ipsph surface`).
     """
-    from ...io import BOUNDARY_SURFACE, RENDERS_DIR, RUN_JSON, RUN_PVD
+    from ...io import BOUNDARY_SURFACE, RUN_JSON, RUN_PVD
     from ...io.provenance import read_run_json
     from ...io.pvd import PvdSeries
     from ...io.vtu import read_particles
@@ -136,7 +137,7 @@ def render_output(
     pngs: list[Path] = []
     with FrameRenderer(config, bounds, radius, rng, surface, title=title) as r:
         for k, (i, (t, f)) in enumerate(todo):
-            png = out / RENDERS_DIR / f"frame_{frame_index(f, i):06d}.png"
+            png = out / render_file(frame_index(f, i))
             moving = series.frame_parts[i].get("bodies")  # moving walls and bodies, where they are
             if moving is not None and (out / moving).is_file():
                 r.set_moving(read_surface(out / moving))
@@ -150,7 +151,7 @@ def render_output(
                 progress(k + 1, len(todo))
     written += pngs
     if video and pngs:
-        written.append(make_video(pngs, out / f"video.{video}", fps))
+        written.append(make_video(pngs, out / video_file(video), fps))
     return written
 
 

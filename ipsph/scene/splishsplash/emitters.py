@@ -16,6 +16,8 @@ import math
 
 import numpy as np
 
+from ...params import spacing
+
 _KEYS = (
     "width",
     "height",
@@ -46,7 +48,7 @@ def _rotation(axis, angle: float) -> np.ndarray:
 def emitter(imp, i: int, e: dict, radius: float) -> dict:
     """One [[emitter]] table from SPlisHSPlasH's Emitters[i] (`imp`: the importer's checks)."""
     label = f"Emitters[{i}]"
-    d = 2.0 * radius
+    d = spacing(radius)
     kind = imp.int_(e.get("type", 0), f"{label}.type")
     if kind not in (0, 1):
         raise imp.fail(f"{label}.type", f"{kind} is not an emitter type (0: box, 1: circle)")

@@ -1,7 +1,7 @@
 """What surfaces cost.
 
-    ipsph bench --surface-sizes 1000000 --repeats 3   # seconds per reconstruction of a jittered N lattice
-    ipsph bench --surface-overhead --repeats 5        # the default scene's `ipsph run`, with and without --surface
+    python -m benchmarks surface-sizes 1000000 --repeats 3   # seconds per reconstruction of a jittered N lattice
+    python -m benchmarks surface-overhead --repeats 5        # the default scene's `ipsph run`, with and without --surface
 
 Per frame: a cubic lattice of N particles at r = 0.01 m, jittered by up to r/4 per axis (seeded), with a
 shear velocity field interpolated onto the vertices, reconstructed by `ipsph.post.surface.reconstruct` with
@@ -25,6 +25,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from ipsph.io import SURFACES_DIR
+
 from . import overhead
 
 SECONDS_TARGET = 10.0  # a 1M-particle frame in at most 10 s on 2 cores
@@ -33,15 +35,16 @@ _ONE = r"""
 import json, resource, sys, time
 import numpy as np
 from ipsph.post.surface import reconstruct
+from ipsph.params import spacing
 from ipsph.scene import surface_config
 n, overrides = int(sys.argv[1]), json.loads(sys.argv[2])
 r = 0.01
 side = max(int(round(n ** (1 / 3))), 2)
-g = (np.arange(side) + 1.0) * 2 * r
+g = (np.arange(side) + 1.0) * spacing(r)
 x = np.stack(np.meshgrid(g, g, g, indexing="ij"), -1).reshape(-1, 3)
 x += np.random.default_rng(20).uniform(-0.25 * r, 0.25 * r, x.shape)
 v = np.zeros_like(x)
-v[:, 0] = 3.0 * x[:, 1] / (side * 2 * r)
+v[:, 0] = 3.0 * x[:, 1] / (side * spacing(r))
 cfg = surface_config({}, overrides)
 cpu = lambda: sum(resource.getrusage(resource.RUSAGE_SELF)[:2])
 t0, c0 = time.perf_counter(), cpu()
@@ -54,9 +57,9 @@ print(json.dumps({"particles": len(x), "seconds": time.perf_counter() - t0, "cpu
 
 def surface_seconds(n: int, threads: int, repeats: int, overrides=(), timeout: float = 900.0, log=print) -> dict:
     """Median seconds of `repeats` reconstructions of a jittered ~n lattice, each in a fresh process."""
-    from .machine import LoadSampler
+    from ipsph.bench.machine import LoadSampler
 
-    root = str(Path(__file__).resolve().parents[2])
+    root = str(Path(__file__).resolve().parents[1])  # the clone: the child imports this ipsph
     env = dict(
         os.environ,
         RAYON_NUM_THREADS=str(threads),
@@ -129,7 +132,7 @@ def sizes_table(rows: list[dict], markdown: bool) -> str:
 
 
 def _surfaces(out: Path) -> int:
-    return len(list((out / "surfaces").glob("*.vtp"))) if (out / "surfaces").is_dir() else 0
+    return len(list((out / SURFACES_DIR).glob("*.vtp"))) if (out / SURFACES_DIR).is_dir() else 0
 
 
 def _one_run(surface: bool, threads: int, tmp: Path, k: int, timeout: float) -> dict:

@@ -1,5 +1,5 @@
 """What a side process costs the default scene's `ipsph run`: runs without and with it, alternating
-in fresh processes (`ipsph bench --surface-overhead`, `python -m benchmarks render-overhead`), median of pair ratios."""
+in fresh processes (`python -m benchmarks surface-overhead`, `render-overhead`), median of pair ratios."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ TARGET = 0.25  # a side process (renders, surfaces) may slow the default scene's
 def default_run(args: list[str], out: Path, threads: int, timeout: float, check) -> dict:
     """One `ipsph run` of the default scene into `out`: wall and CPU seconds, frames, PNGs, load;
     `ok` when it exited 0 with frames and `check(result, out)` holds."""
-    from .machine import timed_ipsph_run
+    from ipsph.bench.machine import timed_ipsph_run
 
     r = timed_ipsph_run(args, out, threads, timeout)
     return {
