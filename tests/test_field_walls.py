@@ -80,6 +80,7 @@ def test_the_density_pass_adds_the_field_to_the_fluid_sum():
     assert away.any() and np.all(dens.wb[away] == 0.0)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ["dfsph", "ipsph"])
 def test_nothing_gets_closer_than_phi_min_to_a_wall(method):
     """A lone particle thrown at the floor at 3 m/s: the projection keeps it PHI_MIN_D d outside
