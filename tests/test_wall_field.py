@@ -5,8 +5,10 @@ tables, boxes, balls and planes, against quadratures written here independently 
 Units: H = 1 (q = y/H) unless a test says otherwise; the lattice spacing is d = H/2.
 """
 
+import os
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -320,8 +322,13 @@ cuda.compile_ptx(k, (f64[:, ::1], types.Array(f64, 4, "C"), types.Array(f64, 6, 
 
 def test_device_functions_compile_to_ptx():
     pytest.importorskip("numba_cuda")
-    probe = "from numba import cuda, types\ncuda.compile_ptx(lambda a: None, (types.float64[:],), cc=(9, 0))"
+    probe = (
+        "from numba import cuda, types\ndef k(a):\n    a[0] = 1.0\ncuda.compile_ptx(k, (types.float64[:],), cc=(9, 0))"
+    )
     if subprocess.run([sys.executable, "-c", probe], capture_output=True).returncode != 0:
         pytest.skip("no NVVM/NVRTC here (the [cuda] extra's CUDA wheels)")
-    out = subprocess.run([sys.executable, "-c", PTX], capture_output=True, text=True)
+    root = str(Path(__file__).parent.parent)  # this checkout's ipsph, whatever is installed
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([root, os.environ.get("PYTHONPATH", "")]))
+    env.pop("NUMBA_ENABLE_CUDASIM", None)
+    out = subprocess.run([sys.executable, "-c", PTX], capture_output=True, text=True, env=env, cwd=root)
     assert out.returncode == 0, out.stderr[-3000:]
