@@ -164,7 +164,7 @@ def _quarter_jet(a, b):
 def _build(n):
     """The Hermite tables on n cells per H (one grid for both, so that the octant's faces are the
     quarter's edges to rounding), as node data: R = Q - Phi(a) Phi(b), (n+1, n+1, 2, 2), and
-    otab = T = O - Phi Phi Phi - sum Phi R, (n+1,)*3 + (2, 2, 2), each with its mixed derivatives.
+    T = O - Phi Phi Phi - sum Phi R, (n+1,)*3 + (2, 2, 2), each with its mixed derivatives.
     R vanishes on a = 0 and b = 0 (Q(0, b) = Phi(b)/2) and T on the three faces, with their data,
     so the interpolants do too: the box's terms join across its faces without a jump."""
     t = np.linspace(0.0, 1.0, n + 1)
@@ -241,7 +241,7 @@ def lattice_first_layer() -> tuple[float, float, float]:
 def calibration() -> tuple[float, float]:
     """(TAU0, DELTA_H): Phi(1/4 + DELTA_H) = TAU0, the first layer at d/2 = H/4 from the face."""
     tau0 = lattice_first_layer()[2]
-    return tau0, wf.half_mass_inv(tau0) - 0.25
+    return tau0, wf.half_mass_inv.py_func(tau0) - 0.25  # (py_func: no compile at import)
 
 
 TAU0, DELTA_H = calibration()
