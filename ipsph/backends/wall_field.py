@@ -20,11 +20,12 @@ Quarter space and octant (the solid beyond two / three orthogonal planes at dist
     Q(a, b)    = Phi(a) Phi(b) + R(a, b)
     O(a, b, c) = Phi(a) Phi(b) Phi(c) + Phi(a) R(b, c) + Phi(b) R(a, c) + Phi(c) R(a, b) + T(a, b, c)
 
-with R (qtab[i, j, s, t] = d^s_a d^t_b R at (i, j)/n) and T (otab, three flags) cubic Hermite data
-on [0, 1]^2 and [0, 1]^3 (`ipsph.boundary.field.tables`). As Q(0, b) = Phi(b)/2 and O(0, b, c) =
-Q(b, c)/2, R and T vanish with their in-face slopes on a = 0 (and b, c = 0), and so do their
-interpolants: a box's terms join across its faces without a jump. Gradients are the interpolants'
-own; every term is 0 from an argument of 1 on (the data are 0 on those planes).
+with R and T interpolated by the C1 bicubic / tricubic Hermite interpolants of their values and
+mixed first derivatives at nodes i/n, stored per cell as polynomial coefficients (qtab[i, j, p, q],
+otab[i, j, k, p, q, r], built by `ipsph.boundary.field.tables`). As Q(0, b) = Phi(b)/2 and
+O(0, b, c) = Q(b, c)/2, R and T vanish with their in-face slopes on a = 0 (and b, c = 0), and so do
+their interpolants: a box's terms join across its faces without a jump. Gradients are the
+interpolants' own; every term is 0 from an argument of 1 on (the data are 0 on those planes).
 
 Box (inclusion-exclusion, brief section 7): along each axis the slab |u| <= e is, within a support,
 1 - chi(e - u) - chi(e + u) inside and chi(|u| - e) - chi(|u| + e) beyond, chi(t) the half space
@@ -34,9 +35,9 @@ Ball of radius R at distance s: I(s) = [s < R] M(R - s) + int_{|R-s|}^{min(R+s,1
 
 Like `bodies`, device functions: scalar `math`, no allocation, no globals but module constants,
 tuples out; they compile with numba njit and as numba-cuda device functions, and import nothing
-from ipsph. inline="always" on the closed forms and on what carries the tables (arrays passed to
-a compiled call cost reference counting on the CPU: 70 ns per call measured); the interpolation
-and per-axis helpers are plain njit, left to LLVM (IR-inlining them too took the box 24 s to compile).
+from ipsph. All are inline="always": numba-cuda compiles a called function that is not inlined
+for the current device, which a PTX build without a GPU does not have. Numba's inliner costs grow
+with the square of a callee's IR, hence the tables' Horner loops and few, small call sites.
 *_field functions return (phi, dphi/dx, dphi/dy, dphi/dz, I, dI/dx, dI/dy, dI/dz) in the object's
 frame and physical units.
 """
@@ -52,40 +53,36 @@ _C = 8.0 / math.pi  # the kernel's constant in units of H: w(r) = _C f(r)
 
 # -- half space ------------------------------------------------------------------------------------
 @njit(inline="always", fastmath=FAST)
+def _phi_a(u):
+    """(Phi(u), A(u)) for u >= 0, branch-free (numba's inliner pays for every block): the outer
+    pieces minus what the inner ones differ by, a multiple of (1/2 - u)^5 and (1/2 - u)^4:
+    Phi = (8/15)(1 - u)+^5 (1 + 2u) - (16/15)(1/2 - u)+^5 (1 + 4u),
+    A   = (8/5)(1 - u)+^4 (1 + 4u) - (16/5)(1/2 - u)+^4 (1 + 8u)."""
+    v, w = max(1.0 - u, 0.0), max(0.5 - u, 0.0)
+    v4, w4 = v * v * v * v, w * w * w * w
+    return (8.0 / 15.0) * v4 * v * (1.0 + 2.0 * u) - (16.0 / 15.0) * w4 * w * (1.0 + 4.0 * u), 1.6 * v4 * (
+        1.0 + 4.0 * u
+    ) - 3.2 * w4 * (1.0 + 8.0 * u)
+
+
+@njit(inline="always", fastmath=FAST)
 def half_mass(q):
     """Phi(q): the kernel mass beyond a plane at signed distance q H (q < 0: the point is inside)."""
-    u = abs(q)
-    if u >= 1.0:
-        m = 0.0
-    elif u > 0.5:
-        v = 1.0 - u
-        v2 = v * v
-        m = (8.0 / 15.0) * v2 * v2 * v * (1.0 + 2.0 * u)
-    else:
-        u2 = u * u
-        m = 0.5 - u * (1.4 - u2 * (8.0 / 3.0 - u2 * (4.8 - 3.2 * u)))
+    m = _phi_a(abs(q))[0]
     return m if q >= 0.0 else 1.0 - m
 
 
 @njit(inline="always", fastmath=FAST)
 def half_density(q):
     """A(q) = -dPhi/dq = H |dPhi/dy|: the kernel's 1D marginal at q (even in q)."""
-    u = abs(q)
-    if u >= 1.0:
-        return 0.0
-    if u > 0.5:
-        v = 1.0 - u
-        v2 = v * v
-        return 1.6 * v2 * v2 * (1.0 + 4.0 * u)
-    u2 = u * u
-    return 1.4 - u2 * (8.0 - u2 * (24.0 - 19.2 * u))
+    return _phi_a(abs(q))[1]
 
 
 @njit(inline="always", fastmath=FAST)
 def half_mass_inv(m):
     """q = Phi^-1(m) in [-1, 1] (psi = H q): Newton on G(u) = Phi(u)^(1/5) - t^(1/5), t = min(m, 1 - m),
     inside a bisection bracket. The fifth root keeps the root simple as u -> 1, where
-    Phi ~ (8/5)(1 - u)^5; from the guess below Newton takes 3-5 steps to 1e-15 (max 30)."""
+    Phi ~ (8/5)(1 - u)^5; from the guess below Newton reaches 1e-15 in 3 steps (30 allowed)."""
     if m <= 0.0:
         return 1.0
     if m >= 1.0:
@@ -93,8 +90,8 @@ def half_mass_inv(m):
     t = m if m <= 0.5 else 1.0 - m
     tau = t**0.2
     lo, hi = 0.0, 1.0  # G(lo) >= 0 >= G(hi)
-    # G is near linear: slope -1.6^(1/5) at u = 1, G(0) = 0.5^(1/5)
-    u = min(max(1.0 - tau * (0.9102392266268373 + 0.2739177 * tau), 0.0), 1.0)
+    # u ~ 1 - tau P(tau), P a least-squares fit (3e-3 in u): at most 3 Newton steps (measured)
+    u = min(max(1.0 - tau * (0.86549957 + tau * (0.55517878 + tau * (-1.12221606 + 0.98002063 * tau))), 0.0), 1.0)
     for _ in range(30):
         p = half_mass(u)
         p5 = p**0.2
@@ -121,181 +118,114 @@ def wall_reading(mass, delta_h):
     return lam, dlam, q
 
 
-# -- cubic Hermite tables: quarter space and octant --------------------------------------------------
-@njit(fastmath=FAST)
-def _hermite(x, n):
-    """Cell of x in [0, 1] on n cells and the 1D cubic Hermite weights there: (i, weights of node i's
-    value and slope, node i+1's value and slope, then the same four differentiated in x)."""
-    p = min(max(x, 0.0), 1.0) * n
-    i = min(int(p), n - 1)
-    t = p - i
-    s = 1.0 / n
-    v0 = t * t * (2.0 * t - 3.0) + 1.0
-    m0, m1 = t * (t - 1.0) * (t - 1.0) * s, t * t * (t - 1.0) * s
-    d0, e0, e1 = 6.0 * n * t * (t - 1.0), (3.0 * t - 1.0) * (t - 1.0), t * (3.0 * t - 2.0)
-    return i, v0, m0, 1.0 - v0, m1, d0, e0, -d0, e1
-
-
-@njit
-def _w(c, k, w):
-    """(weight, its derivative) of node c (0, 1), datum k (0 value, 1 slope) from a _hermite tuple."""
-    if c == 0:
-        return (w[1], w[5]) if k == 0 else (w[2], w[6])
-    return (w[3], w[7]) if k == 0 else (w[4], w[8])
-
-
+# -- tables: quarter space and octant ------------------------------------------------------------------
 @njit(inline="always", fastmath=FAST)
 def _table2(a, b, tab):
-    """Bicubic Hermite interpolant of tab[i, j, s, t] = d^s_a d^t_b f(i/n, j/n): (f, df/da, df/db)."""
-    n = tab.shape[0] - 1
-    wa = _hermite(a, n)
-    wb = _hermite(b, n)
-    i, j = wa[0], wb[0]
+    """The bicubic of the cell holding (a, b) in [0, 1]^2 on n cells: tab[i, j, p, q] multiplies
+    ta^p tb^q, ta = n a - i; returns (f, df/da, df/db) (Horner, derivatives alongside)."""
+    n = tab.shape[0]
+    pa, pb = min(max(a, 0.0), 1.0) * n, min(max(b, 0.0), 1.0) * n
+    i, j = min(int(pa), n - 1), min(int(pb), n - 1)
+    ta, tb = pa - i, pb - j
     v = ga = gb = 0.0
-    for ci in range(2):
-        for ka in range(2):
-            sv = sd = 0.0
-            for cj in range(2):
-                for kb in range(2):
-                    f = tab[i + ci, j + cj, ka, kb]
-                    xb, db = _w(cj, kb, wb)
-                    sv += f * xb
-                    sd += f * db
-            xa, da = _w(ci, ka, wa)
-            v += xa * sv
-            ga += da * sv
-            gb += xa * sd
-    return v, ga, gb
+    for p in range(3, -1, -1):
+        vb = db = 0.0
+        for q in range(3, -1, -1):
+            db = db * tb + vb
+            vb = vb * tb + tab[i, j, p, q]
+        ga = ga * ta + v
+        v = v * ta + vb
+        gb = gb * ta + db
+    return v, ga * n, gb * n
 
 
 @njit(inline="always", fastmath=FAST)
 def _table3(a, b, c, tab):
-    """Tricubic Hermite interpolant of tab[i, j, k, s, t, u] (all mixed first derivatives): (f, grad f)."""
-    n = tab.shape[0] - 1
-    wa = _hermite(a, n)
-    wb = _hermite(b, n)
-    wc = _hermite(c, n)
-    i, j, k = wa[0], wb[0], wc[0]
+    """The tricubic of the cell holding (a, b, c): tab[i, j, k, p, q, r] multiplies ta^p tb^q tc^r;
+    returns (f, grad f)."""
+    n = tab.shape[0]
+    pa, pb, pc = min(max(a, 0.0), 1.0) * n, min(max(b, 0.0), 1.0) * n, min(max(c, 0.0), 1.0) * n
+    i, j, k = min(int(pa), n - 1), min(int(pb), n - 1), min(int(pc), n - 1)
+    ta, tb, tc = pa - i, pb - j, pc - k
     v = ga = gb = gc = 0.0
-    for ci in range(2):
-        for ka in range(2):
-            xa, da = _w(ci, ka, wa)
-            for cj in range(2):
-                for kb in range(2):
-                    xb, db = _w(cj, kb, wb)
-                    sv = sd = 0.0
-                    for ck in range(2):
-                        for kc in range(2):
-                            f = tab[i + ci, j + cj, k + ck, ka, kb, kc]
-                            xc, dc = _w(ck, kc, wc)
-                            sv += f * xc
-                            sd += f * dc
-                    v += xa * xb * sv
-                    ga += da * xb * sv
-                    gb += xa * db * sv
-                    gc += xa * xb * sd
-    return v, ga, gb, gc
+    for p in range(3, -1, -1):
+        vb = db = dcb = 0.0
+        for q in range(3, -1, -1):
+            vc = dc = 0.0
+            for r in range(3, -1, -1):
+                dc = dc * tc + vc
+                vc = vc * tc + tab[i, j, k, p, q, r]
+            db = db * tb + vb
+            vb = vb * tb + vc
+            dcb = dcb * tb + dc
+        ga = ga * ta + v
+        v = v * ta + vb
+        gb = gb * ta + db
+        gc = gc * ta + dcb
+    return v, ga * n, gb * n, gc * n
 
 
-@njit(fastmath=FAST)
-def quarter_mass(a, b, qtab):
-    """(Q, dQ/da, dQ/db) for a, b >= 0 (units of H): Q = Phi(a) Phi(b) + R~(a, b), R~ from qtab."""
-    if a >= 1.0 or b >= 1.0:
-        return 0.0, 0.0, 0.0
-    pa, pb = half_mass(a), half_mass(b)
-    r, ra, rb = _table2(a, b, qtab)
-    return pa * pb + r, ra - half_density(a) * pb, rb - pa * half_density(b)
+@njit(inline="always", fastmath=FAST)
+def _half(t):
+    """(Phi(t), dPhi/dt) for an argument present (t >= 0); (1, 0) for one left out (t < 0)."""
+    f = 0.5 + math.copysign(0.5, t)  # 1 present, 0 left out (arithmetic: no blocks for the inliner)
+    p, a = _phi_a(max(t, 0.0))
+    return f * p + (1.0 - f), -f * a
 
 
-@njit(fastmath=FAST)
-def octant_mass(a, b, c, qtab, otab):
-    """(O, dO/da, dO/db, dO/dc) for a, b, c >= 0:
-    O = Phi_a Phi_b Phi_c + Phi_a R~(b, c) + Phi_b R~(a, c) + Phi_c R~(a, b) + T~(a, b, c)."""
-    if a >= 1.0 or b >= 1.0 or c >= 1.0:
+@njit(inline="always", fastmath=FAST)
+def orthant_mass(a, b, c, qtab, otab):
+    """Kernel mass of {xi > a, eta > b, zeta > c} (units of H) with (M, dM/da, dM/db, dM/dc); an
+    argument < 0 leaves its half space out (Phi = 1, its R and T terms 0), so one code path gives
+    1, Phi, Q (two arguments) and O: M = prod Phi + sum_m Phi_m R~(other two) + T~."""
+    if max(a, b, c) >= 1.0:
         return 0.0, 0.0, 0.0, 0.0
-    p0, p1, p2 = half_mass(a), half_mass(b), half_mass(c)
-    d0, d1, d2 = -half_density(a), -half_density(b), -half_density(c)
-    v, g0, g1, g2 = _table3(a, b, c, otab)
-    v += p0 * p1 * p2
-    g0 += d0 * p1 * p2
-    g1 += p0 * d1 * p2
-    g2 += p0 * p1 * d2
-    for m in range(3):  # the pair without axis m, times Phi of axis m
-        x, y = (b, c) if m == 0 else ((a, c) if m == 1 else (a, b))
-        r, rx, ry = _table2(x, y, qtab)
-        if m == 0:
-            v, g0, g1, g2 = v + p0 * r, g0 + d0 * r, g1 + p0 * rx, g2 + p0 * ry
-        elif m == 1:
-            v, g0, g1, g2 = v + p1 * r, g0 + p1 * rx, g1 + d1 * r, g2 + p1 * ry
-        else:
-            v, g0, g1, g2 = v + p2 * r, g0 + p2 * rx, g1 + p2 * ry, g2 + d2 * r
+    p0, d0 = _half(a)
+    p1, d1 = _half(b)
+    p2, d2 = _half(c)
+    fa, fb, fc = a >= 0.0, b >= 0.0, c >= 0.0  # `&`, not `and`: no short-circuit blocks
+    v, g0, g1, g2 = p0 * p1 * p2, d0 * p1 * p2, p0 * d1 * p2, p0 * p1 * d2
+    if fb & fc:
+        r, rb, rc = _table2(b, c, qtab)
+        v, g0, g1, g2 = v + p0 * r, g0 + d0 * r, g1 + p0 * rb, g2 + p0 * rc
+    if fa & fc:
+        r, ra, rc = _table2(a, c, qtab)
+        v, g0, g1, g2 = v + p1 * r, g0 + p1 * ra, g1 + d1 * r, g2 + p1 * rc
+    if fa & fb:
+        r, ra, rb = _table2(a, b, qtab)
+        v, g0, g1, g2 = v + p2 * r, g0 + p2 * ra, g1 + p2 * rb, g2 + d2 * r
+    if fa & fb & fc:
+        t, ta, tb, tc = _table3(a, b, c, otab)
+        v, g0, g1, g2 = v + t, g0 + ta, g1 + tb, g2 + tc
     return v, g0, g1, g2
 
 
+@njit(inline="always", fastmath=FAST)
+def quarter_mass(a, b, qtab, otab):
+    """(Q, dQ/da, dQ/db) for a, b >= 0: Q = Phi(a) Phi(b) + R~(a, b)."""
+    m, da, db, _ = orthant_mass(a, b, -1.0, qtab, otab)
+    return m, da, db
+
+
+@njit(inline="always", fastmath=FAST)
+def octant_mass(a, b, c, qtab, otab):
+    """(O, dO/da, dO/db, dO/dc) for a, b, c >= 0."""
+    return orthant_mass(a, b, c, qtab, otab)
+
+
 # -- box: inclusion-exclusion over faces, edges and corners ------------------------------------------
-@njit(fastmath=FAST)
-def _term(k, u, e):
-    """Term k (0, 1, 2) of a box's slab |u| <= e along one axis (units of H), as (coefficient,
-    argument, d argument / du): within the slab 1 - chi(e - u) - chi(e + u), beyond it
-    chi(|u| - e) - chi(|u| + e); argument < 0 is "no half space", coefficient 0 "no term"."""
+@njit(inline="always", fastmath=FAST)
+def _slab(u, e):
+    """A box's slab |u| <= e along one axis (units of H) as three terms coefficient x chi(argument):
+    1 - chi(e - u) - chi(e + u) within it, chi(|u| - e) - chi(|u| + e) beyond; returns coefficients,
+    arguments and d argument / du as 3-tuples (argument < 0: no half space, the factor 1; a term
+    out of reach, argument >= 1, gets coefficient 0). Arithmetic, not branches (see _table2)."""
     t = abs(u)
-    sg = 1.0 if u >= 0.0 else -1.0
-    if t <= e:
-        if k == 0:
-            return 1.0, -1.0, 0.0
-        a = e - u if k == 1 else e + u
-        return (-1.0 if a < 1.0 else 0.0), a, (-1.0 if k == 1 else 1.0)
-    if k == 0:
-        return 1.0, t - e, sg
-    return (-1.0 if k == 1 and t + e < 1.0 else 0.0), t + e, sg
-
-
-@njit(inline="always", fastmath=FAST)
-def _mass_of(ax, ay, az, qtab, otab):
-    """Kernel mass of the intersection of the half spaces with arguments >= 0 (negative = absent):
-    1, Phi, Q or O; returns (mass, d/dax, d/day, d/daz)."""
-    px, py, pz = ax >= 0.0, ay >= 0.0, az >= 0.0
-    n = int(px) + int(py) + int(pz)
-    if n == 0:
-        return 1.0, 0.0, 0.0, 0.0
-    if n == 3:
-        return octant_mass(ax, ay, az, qtab, otab)
-    if n == 1:
-        t = ax if px else (ay if py else az)
-        d = -half_density(t)
-        return half_mass(t), d if px else 0.0, d if py else 0.0, d if pz else 0.0
-    p, r = (ay, az) if not px else ((ax, az) if not py else (ax, ay))
-    m, dp, dr = quarter_mass(p, r, qtab)
-    return m, (dp if px else 0.0), ((dr if py else 0.0) if px else dp), (dr if pz else 0.0)
-
-
-@njit(inline="always", fastmath=FAST)
-def box_mass(x, y, z, ex, ey, ez, h, qtab, otab):
-    """(I, dI/dx, dI/dy, dI/dz) of the solid box |x| <= ex, |y| <= ey, |z| <= ez (its own frame)."""
-    u, v, w = x / h, y / h, z / h
-    eu, ev, ew = ex / h, ey / h, ez / h
-    if abs(u) - eu >= 1.0 or abs(v) - ev >= 1.0 or abs(w) - ew >= 1.0:
-        return 0.0, 0.0, 0.0, 0.0
-    m = gx = gy = gz = 0.0
-    for i in range(3):
-        cx, ax, sx = _term(i, u, eu)
-        if cx == 0.0:
-            continue
-        for j in range(3):
-            cy, ay, sy = _term(j, v, ev)
-            if cy == 0.0:
-                continue
-            for k in range(3):
-                cz, az, sz = _term(k, w, ew)
-                if cz == 0.0:
-                    continue
-                c = cx * cy * cz
-                val, dx, dy, dz = _mass_of(ax, ay, az, qtab, otab)
-                m += c * val
-                gx += c * dx * sx
-                gy += c * dy * sy
-                gz += c * dz * sz
-    return m, gx / h, gy / h, gz / h
+    f = 0.5 + math.copysign(0.5, e - t)  # 1 within the slab, 0 beyond
+    g = math.copysign(1.0 - f, u)
+    a1, a2 = f * (e - u) + (1.0 - f) * (t + e), f * (e + u + 1.0) - 1.0
+    c1, c2 = -0.5 - math.copysign(0.5, 1.0 - a1), -f * (0.5 + math.copysign(0.5, 1.0 - a2))
+    return (1.0, c1, c2), (f * (e - t - 1.0) + t - e, a1, a2), (g, g - f, f)
 
 
 @njit(inline="always", fastmath=FAST)
@@ -318,41 +248,56 @@ def box_distance(x, y, z, ex, ey, ez):
 @njit(inline="always", fastmath=FAST)
 def box_field(x, y, z, ex, ey, ez, h, container, qtab, otab):
     """(phi, grad phi, I, grad I) of the box of half extents (ex, ey, ez) about its frame's origin; with
-    `container` its complement (fluid inside: I = 1 - I_box, phi and both gradients change sign)."""
+    `container` its complement (fluid inside: I = 1 - I_box, phi and both gradients change sign).
+    I is the product of the three slabs' terms: 27 orthant masses (those with an argument >= 1 are 0)."""
     d, d0, d1, d2 = box_distance(x, y, z, ex, ey, ez)
-    m, g0, g1, g2 = box_mass(x, y, z, ex, ey, ez, h, qtab, otab)
-    if container:
-        return -d, -d0, -d1, -d2, 1.0 - m, -g0, -g1, -g2
-    return d, d0, d1, d2, m, g0, g1, g2
+    u, v, w = x / h, y / h, z / h
+    m = gx = gy = gz = 0.0
+    if max(abs(u) - ex / h, abs(v) - ey / h, abs(w) - ez / h) < 1.0:
+        cx, ax, sx = _slab(u, ex / h)
+        cy, ay, sy = _slab(v, ey / h)
+        cz, az, sz = _slab(w, ez / h)
+        for i in range(3):  # zero terms skipped at each level: a point well inside has one
+            if cx[i] == 0.0:
+                continue
+            for j in range(3):
+                if cy[j] == 0.0:
+                    continue
+                for k in range(3):
+                    c = cx[i] * cy[j] * cz[k]
+                    if c != 0.0:
+                        val, dx, dy, dz = orthant_mass(ax[i], ay[j], az[k], qtab, otab)
+                        m += c * val
+                        gx += c * dx * sx[i]
+                        gy += c * dy * sy[j]
+                        gz += c * dz * sz[k]
+    sg = -1.0 if container else 1.0
+    return sg * d, sg * d0, sg * d1, sg * d2, (1.0 - m if container else m), sg * gx / h, sg * gy / h, sg * gz / h
 
 
 # -- ball --------------------------------------------------------------------------------------------
-def _moment_knot(k):
-    """int_0^(1/2) t^k f dt minus the outer antiderivative 2 int t^k (1 - t)^3 dt at 1/2 (host only)."""
-    inner = 6.0 * 0.5 ** (k + 4) / (k + 4) - 6.0 * 0.5 ** (k + 3) / (k + 3) + 0.5 ** (k + 1) / (k + 1)
-    return inner - 2.0 * sum(c * 0.5 ** (k + j) / (k + j) for j, c in ((1, 1.0), (2, -3.0), (3, 3.0), (4, -1.0)))
-
-
-_K1, _K2, _K3 = _moment_knot(1), _moment_knot(2), _moment_knot(3)  # the outer pieces' constants
+@njit(inline="always", fastmath=FAST)
+def _cubed_moments(a, m):
+    """int_0^m t^k (a - t)^3 dt for k = 1, 2, 3."""
+    m2 = m * m
+    m4 = m2 * m2
+    a2 = a * a
+    j1 = m2 * (a2 * a / 2.0 - a2 * m + 0.75 * a * m2 - m2 * m / 5.0)
+    j2 = m2 * m * (a2 * a / 3.0 - 0.75 * a2 * m + 0.6 * a * m2 - m2 * m / 6.0)
+    j3 = m4 * (a2 * a / 4.0 - 0.6 * a2 * m + 0.5 * a * m2 - m2 * m / 7.0)
+    return j1, j2, j3
 
 
 @njit(inline="always", fastmath=FAST)
 def _moments(r):
-    """(P1, P2, P3)(r), P_k(r) = int_0^min(r,1) t^k w(t) dt in units of H (w = (8/pi) f)."""
-    r = min(r, 1.0)
-    r2, r3, r4 = r * r, r * r * r, r * r * r * r
-    if r <= 0.5:
-        p1 = r2 * (0.5 + r2 * (-1.5 + 1.2 * r))
-        p2 = r3 * (1.0 / 3.0 + r2 * (-1.2 + r))
-        p3 = r4 * (0.25 + r2 * (-1.0 + r * (6.0 / 7.0)))
-    else:
-        p1 = _K1 + 2.0 * r2 * (0.5 + r * (-1.0 + r * (0.75 - 0.2 * r)))
-        p2 = _K2 + 2.0 * r3 * (1.0 / 3.0 + r * (-0.75 + r * (0.6 - r / 6.0)))
-        p3 = _K3 + 2.0 * r4 * (0.25 + r * (-0.6 + r * (0.5 - r / 7.0)))
-    return _C * p1, _C * p2, _C * p3
+    """(P1, P2, P3)(r), P_k(r) = int_0^r t^k w(t) dt in units of H, from the kernel's branch-free
+    form w = (16/pi) [(1 - t)+^3 - 4 (1/2 - t)+^3]: P_k = (16/pi) [J_k(1, min(r, 1)) - 4 J_k(1/2, min(r, 1/2))]."""
+    o1, o2, o3 = _cubed_moments(1.0, min(r, 1.0))
+    i1, i2, i3 = _cubed_moments(0.5, min(r, 0.5))
+    return 2.0 * _C * (o1 - 4.0 * i1), 2.0 * _C * (o2 - 4.0 * i2), 2.0 * _C * (o3 - 4.0 * i3)
 
 
-@njit(fastmath=FAST)
+@njit(inline="always", fastmath=FAST)
 def ball_mass(s, radius, h):
     """(I, dI/ds) of a solid ball of `radius` at distance s from its centre (physical units):
     I = [s < R] 4 pi P2(R - s) + 2 pi dP2 + (pi/s)((R^2 - s^2) dP1 - dP3),
@@ -366,7 +311,7 @@ def ball_mass(s, radius, h):
     lo = abs(rr - sc)
     if lo >= 1.0:
         return 0.0, 0.0
-    m = 4.0 * math.pi * _moments(rr - sc)[1] if sc < rr else 0.0
+    m = 4.0 * math.pi * _moments(max(rr - sc, 0.0))[1]
     a1, a2, a3 = _moments(lo)
     b1, b2, b3 = _moments(rr + sc)
     d1, d2, d3 = b1 - a1, b2 - a2, b3 - a3
@@ -377,7 +322,7 @@ def ball_mass(s, radius, h):
     return m, dm / h
 
 
-@njit(fastmath=FAST)
+@njit(inline="always", fastmath=FAST)
 def sphere_field(x, y, z, radius, h, container):
     """(phi, grad phi, I, grad I) of a ball centred at the origin of its frame (with `container`,
     the fluid fills the ball: the complement). At the centre grad phi is taken as (0, 0, 1)."""

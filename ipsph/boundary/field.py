@@ -19,9 +19,10 @@ in z, asinh for the odd k); d3O/dadbdc = -w(|(a, b, c)|); the rest by O's symmet
 permutations. Q(a, b) = 2 O(a, b, 0) and its data likewise. The radial integrals are
 Gauss-Legendre in s = sqrt(r - r0) (O and S behave like powers of sqrt(r - r0) at r0), split at
 the kernel's knot r = 1/2. The tables hold the remainders R = Q - Phi Phi and T = O - Phi Phi Phi
-- sum Phi R (wall_field's docstring), their data by the product rule. At 16 cells per H: 9 kB and
-314 kB, built in 0.2 s once per process (too little for a disk cache to pay), interpolation
-error 2e-7 (value) and 5e-6 (H |gradient|), measured by tests/test_wall_field.py.
+- sum Phi R (wall_field's docstring), their data by the product rule, and are handed to the
+device as each cell's polynomial coefficients of the cubic Hermite interpolant (`_cells`). At
+16 cells per H: 32 kB and 2.1 MB, built in 0.2 s once per process (too little for a disk cache to
+pay); interpolation error 2e-7 (value) and 5e-6 (H |gradient|), measured by tests/test_wall_field.py.
 
 Calibration (brief section 3): on the simple cubic lattice of spacing d (volume d^3, H = 2d) the
 first layer of a half lattice, d/2 from a flat face, reads S_half = d^3 sum_{fluid j} W_ij;
@@ -162,8 +163,8 @@ def _quarter_jet(a, b):
 
 def _build(n):
     """The Hermite tables on n cells per H (one grid for both, so that the octant's faces are the
-    quarter's edges to rounding): qtab = R = Q - Phi(a) Phi(b), (n+1, n+1, 2, 2), and
-    otab = T = O - Phi Phi Phi - sum Phi R, (n+1,)*3 + (2, 2, 2), each with its mixed derivatives.
+    quarter's edges to rounding), as node data: R = Q - Phi(a) Phi(b), (n+1, n+1, 2, 2), and
+    T = O - Phi Phi Phi - sum Phi R, (n+1,)*3 + (2, 2, 2), each with its mixed derivatives.
     R vanishes on a = 0 and b = 0 (Q(0, b) = Phi(b)/2) and T on the three faces, with their data,
     so the interpolants do too: the box's terms join across its faces without a jump."""
     t = np.linspace(0.0, 1.0, n + 1)
@@ -191,13 +192,34 @@ def _build(n):
     # zero on the coordinate faces (value and in-face slopes), as they are analytically
     R[0, :, 0, :] = R[:, 0, :, 0] = 0.0
     T[0, :, :, 0, :, :] = T[:, 0, :, :, 0, :] = T[:, :, 0, :, :, 0] = 0.0
-    return np.ascontiguousarray(R), np.ascontiguousarray(T)
+    return R, T
+
+
+# rows: a cell's node 0 value, node 0 slope x width, node 1 value, node 1 slope x width; columns: the
+# coefficients of t^0..t^3 of the cubic Hermite basis functions
+_HERMITE = np.array([[1.0, 0.0, -3.0, 2.0], [0.0, 1.0, -2.0, 1.0], [0.0, 0.0, 3.0, -2.0], [0.0, 0.0, -1.0, 1.0]])
+
+
+def _cells(nodes):
+    """Per-cell polynomial coefficients of the Hermite interpolant of node data `nodes` (shape
+    (n+1,)*dim + (2,)*dim, value and mixed first derivatives): (n,)*dim + (4,)*dim."""
+    dim = nodes.ndim // 2
+    n = nodes.shape[0] - 1
+    data = np.empty((n,) * dim + (4,) * dim)
+    for corner in np.ndindex(*(2,) * dim):  # node offsets within the cell
+        for flags in np.ndindex(*(2,) * dim):  # which derivatives
+            src = nodes[tuple(slice(c, c + n) for c in corner) + flags]
+            data[(Ellipsis,) + tuple(2 * c + f for c, f in zip(corner, flags))] = src * (1.0 / n) ** sum(flags)
+    for axis in range(dim):  # the basis change along each local axis in turn
+        data = np.moveaxis(np.tensordot(data, _HERMITE, axes=([dim + axis], [0])), -1, dim + axis)
+    return np.ascontiguousarray(data)
 
 
 @lru_cache(maxsize=4)
 def tables(n: int = CELLS) -> tuple[np.ndarray, np.ndarray]:
-    """(qtab, otab) for `wall_field.quarter_mass` / `octant_mass` (C-contiguous float64, read-only)."""
-    qtab, otab = _build(n)
+    """(qtab, otab) for `wall_field`'s orthant_mass, box_field, ...: (n, n, 4, 4) and (n, n, n, 4, 4, 4)
+    cell coefficients (C-contiguous float64, read-only)."""
+    qtab, otab = (_cells(t) for t in _build(n))
     for t in (qtab, otab):
         t.flags.writeable = False
     return qtab, otab
@@ -219,7 +241,7 @@ def lattice_first_layer() -> tuple[float, float, float]:
 def calibration() -> tuple[float, float]:
     """(TAU0, DELTA_H): Phi(1/4 + DELTA_H) = TAU0, the first layer at d/2 = H/4 from the face."""
     tau0 = lattice_first_layer()[2]
-    return tau0, wf.half_mass_inv(tau0) - 0.25
+    return tau0, wf.half_mass_inv.py_func(tau0) - 0.25  # (py_func: no compile at import)
 
 
 TAU0, DELTA_H = calibration()
@@ -259,9 +281,9 @@ def _reading_loop(m, delta_h, out):
 
 
 @njit
-def _quarter_loop(a, b, qtab, out):
+def _quarter_loop(a, b, qtab, otab, out):
     for i in range(a.shape[0]):
-        r = wf.quarter_mass(a[i], b[i], qtab)
+        r = wf.quarter_mass(a[i], b[i], qtab, otab)
         for k in range(3):
             out[i, k] = r[k]
 
@@ -322,7 +344,7 @@ def quarter(a, b, tabs=None):
     """The interpolated Q(a, b) and its gradient, (n, 3), for a, b >= 0 (units of H)."""
     a, b = (np.ascontiguousarray(v) for v in _prep(a, b))
     out = np.empty((len(a), 3))
-    _quarter_loop(a, b, (tabs or tables())[0], out)
+    _quarter_loop(a, b, *(tabs or tables()), out)
     return out
 
 
