@@ -10,11 +10,31 @@ from .field_bodies import object_field, wall_field_at, wall_pressure_at, wall_pr
 from .kernels import FASTMATH as FAST
 
 
+# The prange loops call the bodies through these non-inlined wrappers: numba's parallel array
+# analysis cannot follow the box integral's tuple arithmetic once it is inlined into the loop.
+@njit(fastmath=FAST, cache=True)
+def _field_one(i, x, h, rho0, delta_h, objects, wb, gw, gvb, ws):
+    wall_field_at(i, x, h, rho0, delta_h, objects, wb, gw, gvb, ws)
+
+
+@njit(fastmath=FAST, cache=True)
+def _project_one(i, x, v, h, phi_min, objects, moved):
+    wall_project_at(i, x, v, h, phi_min, objects, moved)
+
+
+@njit(fastmath=FAST, cache=True)
+def _distance_one(i, p, h, objects, out):
+    best = np.inf
+    for k in range(objects[0].shape[0]):
+        best = min(best, object_field(k, p[i, 0], p[i, 1], p[i, 2], h, objects)[0])
+    out[i] = best
+
+
 @njit(parallel=True, fastmath=FAST, cache=True)
 def wall_field(x, h, rho0, delta_h, objects, wb, gw, gvb, ws):
     """field_bodies.wall_field_at for every particle."""
     for i in prange(x.shape[0]):
-        wall_field_at(i, x, h, rho0, delta_h, objects, wb, gw, gvb, ws)
+        _field_one(i, x, h, rho0, delta_h, objects, wb, gw, gvb, ws)
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)
@@ -28,23 +48,18 @@ def wall_pressure(gw, ws, g, rho0, dt, v):
 def wall_project(x, v, h, phi_min, objects, moved):
     """field_bodies.wall_project_at for every particle; returns how many were moved."""
     for i in prange(x.shape[0]):
-        wall_project_at(i, x, v, h, phi_min, objects, moved)
+        _project_one(i, x, v, h, phi_min, objects, moved)
     return np.count_nonzero(moved)
 
 
 @njit(parallel=True, cache=True)
 def min_distance(p, h, objects, out):
     """out_i = min over the objects of phi_k(p_i) (host queries: sampling, checks)."""
-    kind = objects[0]
     for i in prange(p.shape[0]):
-        best = np.inf
-        for k in range(kind.shape[0]):
-            f = object_field(k, p[i, 0], p[i, 1], p[i, 2], h, objects)[0]
-            best = min(best, f)
-        out[i] = best
+        _distance_one(i, p, h, objects, out)
 
 
 depend_on(
-    (wall_field, wall_pressure, wall_project, min_distance),
+    (wall_field, wall_pressure, wall_project, min_distance, _field_one, _project_one, _distance_one),
     (__file__, field_bodies.__file__, field_maths.__file__, field_grid.__file__, kernels.__file__),
 )
