@@ -11,6 +11,7 @@ Layout of an output folder OUT (fixed; the runner fills it, `ipsph render` reads
     OUT/bodies/bodies_000000.vtp  the moving walls' and rigid bodies' surfaces per frame (io.bodies)
     OUT/bodies.csv                one row per moving wall per step (io.bodies.BODIES_COLUMNS)
     OUT/stats.csv                 one row per step
+    OUT/gauges.csv                one row per gauge sample ([[gauge]], ipsph.gauges)
     OUT/run.json                  provenance
     OUT/paraview_view.py          a ParaView script that opens the run with its settings (ipsph.post.paraview)
     OUT/renders/frame_000000.png, OUT/plots/*.png, OUT/video.mp4|gif
@@ -50,6 +51,7 @@ __all__ = [
     "BODIES_DIR",
     "BODIES_CSV",
     "bodies_file",
+    "GAUGES_CSV",
 ]
 
 RUN_PVD = "run.pvd"
@@ -65,6 +67,7 @@ PARAVIEW_SCRIPT = "paraview_view.py"
 BODIES_DIR = "bodies"
 BODIES_CSV = "bodies.csv"
 CHECKPOINT_FILE = "checkpoint.npz"
+GAUGES_CSV = "gauges.csv"
 
 
 @dataclass(frozen=True)

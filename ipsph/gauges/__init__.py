@@ -1,0 +1,7 @@
+"""Gauges: time series of pressure, velocity, density, water level, wall forces and flow at chosen
+places, during a run (gauges.csv) and on a finished run's frames (`ipsph gauge`); docs/gauges.md.
+
+    sampler.Gauges   the [[gauge]] tables as columns, and their values for one state of the fluid
+    kernels          the numerics (numba), reading the fluid at the precision frames store it
+    walls            a force gauge's wall particles, in one order for a run and its frames
+"""
