@@ -171,8 +171,9 @@ class Gauges:
             if g.kind == "force" and (due is None or k in due):
                 xw, mw = self.walls.arrays(g.wall, t)
                 force_walls[k] = (xw, mw)
+                reach = (2.0 if self.viscous else 1.0) * self.h  # the viscous part: i's own neighbours too
                 if len(xw):
-                    boxes[k, :3], boxes[k, 3:] = xw.min(axis=0) - self.h, xw.max(axis=0) + self.h
+                    boxes[k, :3], boxes[k, 3:] = xw.min(axis=0) - reach, xw.max(axis=0) + reach
                 else:
                     boxes[k] = (1.0, 1.0, 1.0, 0.0, 0.0, 0.0)  # empty
         start, idx = K.select(x, boxes)
@@ -202,8 +203,29 @@ class Gauges:
                 K.wall_force(x, rho, p, m, cand, xw, mw, self.centres[g.name], self.h, buf)
                 vals = _force_values(g, buf)
                 if self.viscous:
-                    vals += [math.nan] * len(vals)  # filled by the viscous part when it is measured
+                    vals += _force_values(g, self._viscous(g, t, x, v, rho, m, cand, xw, mw))
             out[first : first + len(vals)] = vals
+        return out
+
+    def _viscous(self, g: GaugeSpec, t: float, x, v, rho, m, cand, xw, mw) -> np.ndarray:
+        """(F, T) of the implicit viscosity's wall friction on the wall of `g` (NaN where the wall's
+        velocities are unknown: a rigid body's after the run, bodies.csv has no angular velocity)."""
+        from ..methods.viscosity import full_trace
+        from .viscous import wall_viscous_force
+
+        out = np.full(6, np.nan)
+        vw = self.walls.velocities(g.wall, t)
+        if vw is None or not len(xw):
+            return out
+        xa, ma = self.walls.everything(t)
+        reach = 3.0 * self.h  # the walls near the fluid within 2H of this wall
+        near = np.all((xa >= xw.min(axis=0) - reach) & (xa <= xw.max(axis=0) + reach), axis=1)
+        sc = self.scene
+        wall_viscous_force(
+            x, v, rho, m, cand, xw, mw, np.ascontiguousarray(vw, dtype=np.float64),
+            np.ascontiguousarray(xa[near]), np.ascontiguousarray(ma[near]), self.h, sc.kinematic_viscosity_m2s,
+            full_trace(sc.spacing, self.h), sc.density0, self.centres[g.name], out,
+        )  # fmt: skip
         return out
 
     def restore_level_max(self, columns: dict[str, np.ndarray]) -> None:

@@ -77,6 +77,13 @@ class RunWalls:
         b = self.boundary
         return np.ascontiguousarray(b.x[rows]), np.ascontiguousarray(b.m[rows])
 
+    def velocities(self, name: str, t: float) -> np.ndarray:
+        return np.ascontiguousarray(self.boundary.v[self.rows(wall_index(self.scene, name))])
+
+    def everything(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """(positions, masses) of every wall particle, in the run's order."""
+        return self.boundary.x, self.boundary.m
+
     def centre(self, name: str) -> np.ndarray:
         k = wall_index(self.scene, name)
         return _box_centre(self.x0[self.start[k] : self.start[k + 1]])
@@ -143,6 +150,24 @@ class FrameWalls:
 
         pivot = spec.motion.pivot if spec.motion.pivot is not None else 0.5 * (x0.min(axis=0) + x0.max(axis=0))
         return np.ascontiguousarray(Motion(spec.motion, pivot).positions(x0, t)), m
+
+    def velocities(self, name: str, t: float) -> np.ndarray | None:
+        """The wall's particles' velocities at t; None for a rigid body (bodies.csv lacks its spin)."""
+        k = wall_index(self.scene, name)
+        spec, x0, _ = self._wall(k)
+        if not spec.moving:
+            return np.zeros_like(x0)
+        if spec.dynamic:
+            return None
+        from ..boundary.motion import Motion
+
+        pivot = spec.motion.pivot if spec.motion.pivot is not None else 0.5 * (x0.min(axis=0) + x0.max(axis=0))
+        return Motion(spec.motion, pivot).velocities(x0, t)
+
+    def everything(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """(positions, masses) of every wall particle at t, canonical order."""
+        parts = [self.arrays(spec.name, t) for spec in self.scene.boundaries]
+        return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
 
     def _body_positions(self, spec, x0: np.ndarray, t: float) -> np.ndarray:
         from ..boundary.motion import quat_matrix
