@@ -62,30 +62,34 @@ def select(x, boxes):
 
 
 @njit(cache=True)
-def point_values(x, v, rho, p, m, idx, q, h, out):
-    """out = (p, vx, vy, vz, rho, n) at the point q: Shepard-normalised SPH interpolation over the
-    n fluid particles within H (idx: the candidates); NaN values when n < MIN_NEIGHBOURS."""
-    n = 0
-    s = sp = s0 = s1 = s2 = sr = 0.0
-    for k in range(idx.shape[0]):
-        j = idx[k]
-        d0, d1, d2 = _q(x[j, 0]) - q[0], _q(x[j, 1]) - q[1], _q(x[j, 2]) - q[2]
-        r = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-        if r < h:
-            rj = _q(rho[j])
-            wv = _q(m[j]) / rj * w(r, h)
-            n += 1
-            s += wv
-            sp += wv * _q(p[j])
-            s0 += wv * _q(v[j, 0])
-            s1 += wv * _q(v[j, 1])
-            s2 += wv * _q(v[j, 2])
-            sr += wv * rj
-    out[5] = n
-    if n < MIN_NEIGHBOURS or not s > 0.0:
-        out[:5] = np.nan
-        return
-    out[0], out[1], out[2], out[3], out[4] = sp / s, s0 / s, s1 / s, s2 / s, sr / s
+def point_values(x, v, rho, p, m, start, idx, gauges, points, h, out):
+    """For each point gauge k (its index gauges[k] into the CSR start/idx of `select`):
+    out[k] = (p, vx, vy, vz, rho, n) at points[k], Shepard-normalised SPH interpolation over the n
+    fluid particles within H; NaN values when n < MIN_NEIGHBOURS."""
+    for k in range(gauges.shape[0]):
+        g = gauges[k]
+        q0, q1, q2 = points[k, 0], points[k, 1], points[k, 2]
+        n = 0
+        s = sp = s0 = s1 = s2 = sr = 0.0
+        for t in range(start[g], start[g + 1]):
+            j = idx[t]
+            d0, d1, d2 = _q(x[j, 0]) - q0, _q(x[j, 1]) - q1, _q(x[j, 2]) - q2
+            r = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+            if r < h:
+                rj = _q(rho[j])
+                wv = _q(m[j]) / rj * w(r, h)
+                n += 1
+                s += wv
+                sp += wv * _q(p[j])
+                s0 += wv * _q(v[j, 0])
+                s1 += wv * _q(v[j, 1])
+                s2 += wv * _q(v[j, 2])
+                sr += wv * rj
+        out[k, 5] = n
+        if n < MIN_NEIGHBOURS or not s > 0.0:
+            out[k, :5] = np.nan
+        else:
+            out[k, 0], out[k, 1], out[k, 2], out[k, 3], out[k, 4] = sp / s, s0 / s, s1 / s, s2 / s, sr / s
 
 
 @njit(cache=True)
@@ -166,12 +170,16 @@ def flow_value(x, v, rho, m, idx, lo, hi, axis, h):
     return total
 
 
+GRID_CELL_H = 0.5  # the gauges' own grids: cells of H/2 (a support sphere scans ~11 H^3 of cells, not 27)
+
+
 @njit(cache=True)
-def _grid(xs, h):
-    """A grid of cells of size h over the points xs: (origin, dims, order, start) with the points of
-    cell c at order[start[c]:start[c + 1]], ascending (a stable counting sort)."""
+def _grid(xs, cell):
+    """A grid of cubic cells of size `cell` over the points xs, padded by one cell: (origin, dims,
+    order, start) with the points of cell c at order[start[c]:start[c + 1]], ascending (a stable
+    counting sort)."""
     n = xs.shape[0]
-    origin = np.empty(3)
+    origin = np.zeros(3)
     dims = np.ones(3, dtype=np.int64)
     for a in range(3):
         lo, hi = np.inf, -np.inf
@@ -180,23 +188,35 @@ def _grid(xs, h):
             hi = max(hi, xs[i, a])
         if n == 0:
             lo = hi = 0.0
-        origin[a] = lo - h
-        dims[a] = int((hi - lo) / h) + 3
-    cell = np.empty(n, dtype=np.int64)
+        origin[a] = lo - cell
+        dims[a] = int((hi - lo) / cell) + 3
+    cells = np.empty(n, dtype=np.int64)
     count = np.zeros(dims[0] * dims[1] * dims[2] + 1, dtype=np.int64)
     for i in range(n):
-        c0 = int((xs[i, 0] - origin[0]) / h)
-        c1 = int((xs[i, 1] - origin[1]) / h)
-        c2 = int((xs[i, 2] - origin[2]) / h)
-        cell[i] = c0 + dims[0] * (c1 + dims[1] * c2)
-        count[cell[i] + 1] += 1
+        c0 = int((xs[i, 0] - origin[0]) / cell)
+        c1 = int((xs[i, 1] - origin[1]) / cell)
+        c2 = int((xs[i, 2] - origin[2]) / cell)
+        cells[i] = c0 + dims[0] * (c1 + dims[1] * c2)
+        count[cells[i] + 1] += 1
     start = np.cumsum(count)
     fill = start[:-1].copy()
     order = np.empty(n, dtype=np.int64)
     for i in range(n):
-        order[fill[cell[i]]] = i
-        fill[cell[i]] += 1
+        order[fill[cells[i]]] = i
+        fill[cells[i]] += 1
     return origin, dims, order, start
+
+
+@njit(inline="always")
+def cell_range(p, origin, dims, cell, h):
+    """The cells of a grid (`_grid`) that the sphere of radius h around p touches: lo0, lo1, lo2, hi0, hi1, hi2."""
+    lo0 = max(int((p[0] - h - origin[0]) / cell), 0)
+    lo1 = max(int((p[1] - h - origin[1]) / cell), 0)
+    lo2 = max(int((p[2] - h - origin[2]) / cell), 0)
+    hi0 = min(int((p[0] + h - origin[0]) / cell), dims[0] - 1)
+    hi1 = min(int((p[1] + h - origin[1]) / cell), dims[1] - 1)
+    hi2 = min(int((p[2] + h - origin[2]) / cell), dims[2] - 1)
+    return lo0, lo1, lo2, hi0, hi1, hi2
 
 
 @njit(cache=True)
@@ -217,16 +237,12 @@ def wall_force(x, rho, p, m, idx, xw, mw, centre, h, out):
         xs[k, 0], xs[k, 1], xs[k, 2] = _q(x[j, 0]), _q(x[j, 1]), _q(x[j, 2])
         rj = _q(rho[j])
         coeff[k] = _q(m[j]) * _q(p[j]) / (rj * rj)
-    origin, dims, order, start = _grid(xs, h)
+    cell = GRID_CELL_H * h
+    origin, dims, order, start = _grid(xs, cell)
     out[:] = 0.0
     for b in range(xw.shape[0]):
         f0 = f1 = f2 = 0.0
-        lo0 = max(int((xw[b, 0] - h - origin[0]) / h), 0)
-        lo1 = max(int((xw[b, 1] - h - origin[1]) / h), 0)
-        lo2 = max(int((xw[b, 2] - h - origin[2]) / h), 0)
-        hi0 = min(int((xw[b, 0] + h - origin[0]) / h), dims[0] - 1)
-        hi1 = min(int((xw[b, 1] + h - origin[1]) / h), dims[1] - 1)
-        hi2 = min(int((xw[b, 2] + h - origin[2]) / h), dims[2] - 1)
+        lo0, lo1, lo2, hi0, hi1, hi2 = cell_range(xw[b], origin, dims, cell, h)
         for c2 in range(lo2, hi2 + 1):
             for c1 in range(lo1, hi1 + 1):
                 for c0 in range(lo0, hi0 + 1):

@@ -142,6 +142,19 @@ class Gauges:
         for k, g in enumerate(self.specs):
             if g.kind != "force":
                 self._boxes[k] = self._box(g)
+        # laid out once: the point gauges (one kernel call for all), their columns of point_values'
+        # (p, vx, vy, vz, rho, n), the flow rectangles, the force gauges
+        self._points = np.array([k for k, g in enumerate(self.specs) if g.kind == "point"], dtype=np.int64)
+        self._point_xyz = np.array([self.specs[k].position for k in self._points], dtype=np.float64).reshape(-1, 3)
+        self._point_out = np.empty((len(self._points), 6))
+        picks = {"pressure": [0], "velocity": [1, 2, 3], "density": [4]}
+        self._point_picks = [[c for q in self.specs[k].quantities for c in picks[q]] for k in self._points]
+        self._rects = {
+            k: (np.asarray(g.box_min, dtype=np.float64), np.asarray(g.box_max, dtype=np.float64), _flat_axis(g))
+            for k, g in enumerate(self.specs)
+            if g.kind == "flow"
+        }
+        self._forces = [k for k, g in enumerate(self.specs) if g.kind == "force"]
 
     @property
     def headers(self) -> list[str]:
@@ -167,8 +180,9 @@ class Gauges:
         set of gauge indices; all when None). Updates the level gauges' highest level so far."""
         boxes = self._boxes
         force_walls = {}
-        for k, g in enumerate(self.specs):
-            if g.kind == "force" and (due is None or k in due):
+        for k in self._forces:
+            if due is None or k in due:
+                g = self.specs[k]
                 xw, mw = self.walls.arrays(g.wall, t)
                 force_walls[k] = (xw, mw)
                 reach = (2.0 if self.viscous else 1.0) * self.h  # the viscous part: i's own neighbours too
@@ -178,17 +192,18 @@ class Gauges:
                     boxes[k] = (1.0, 1.0, 1.0, 0.0, 0.0, 0.0)  # empty
         start, idx = K.select(x, boxes)
         out: list[float | None] = [None] * len(self.columns)
-        buf = np.empty(6)
+        if len(self._points):
+            K.point_values(x, v, rho, p, m, start, idx, self._points, self._point_xyz, self.h, self._point_out)
+            for k, (g, picks) in enumerate(zip(self._points, self._point_picks)):
+                if due is None or g in due:
+                    first = self.spans[g][0]
+                    out[first : first + len(picks)] = self._point_out[k, picks].tolist()
         for k, g in enumerate(self.specs):
-            if due is not None and k not in due:
+            if g.kind == "point" or due is not None and k not in due:
                 continue
             cand = idx[start[k] : start[k + 1]]
             first, _ = self.spans[k]
-            if g.kind == "point":
-                K.point_values(x, v, rho, p, m, cand, np.asarray(g.position, dtype=np.float64), self.h, buf)
-                got = {"pressure": [buf[0]], "velocity": list(buf[1:4]), "density": [buf[4]]}
-                vals = [float(c) for q in g.quantities for c in got[q]]
-            elif g.kind == "level":
+            if g.kind == "level":
                 x0, y0, z0 = g.position
                 level = float(K.level_value(x, rho, m, cand, x0, z0, y0, g.top, self.step, self.h))
                 if not math.isnan(level) and not level <= self.level_max[g.name]:
@@ -196,10 +211,11 @@ class Gauges:
                 got = {"level": level, "level_max": self.level_max[g.name]}
                 vals = [got[q] for q in g.quantities]
             elif g.kind == "flow":
-                lo, hi = np.asarray(g.box_min, dtype=np.float64), np.asarray(g.box_max, dtype=np.float64)
-                vals = [float(K.flow_value(x, v, rho, m, cand, lo, hi, _flat_axis(g), self.h))]
+                lo, hi, axis = self._rects[k]
+                vals = [float(K.flow_value(x, v, rho, m, cand, lo, hi, axis, self.h))]
             else:
                 xw, mw = force_walls[k]
+                buf = np.empty(6)
                 K.wall_force(x, rho, p, m, cand, xw, mw, self.centres[g.name], self.h, buf)
                 vals = _force_values(g, buf)
                 if self.viscous:

@@ -23,26 +23,15 @@ from numba import njit
 
 from ..backends.kernels import grad_w_factor
 from ..backends.viscous_bodies import _smallest_eigenvalue, eps_of
-from .kernels import _grid, _q
-
-
-@njit(inline="always")
-def _cells(p, origin, dims, h):
-    lo0 = max(int((p[0] - h - origin[0]) / h), 0)
-    lo1 = max(int((p[1] - h - origin[1]) / h), 0)
-    lo2 = max(int((p[2] - h - origin[2]) / h), 0)
-    hi0 = min(int((p[0] + h - origin[0]) / h), dims[0] - 1)
-    hi1 = min(int((p[1] + h - origin[1]) / h), dims[1] - 1)
-    hi2 = min(int((p[2] + h - origin[2]) / h), dims[2] - 1)
-    return lo0, lo1, lo2, hi0, hi1, hi2
+from .kernels import GRID_CELL_H, _grid, _q, cell_range
 
 
 @njit(cache=True)
-def _friction(xs, vol, origin, dims, order, start, xa, ma, aorigin, adims, aorder, astart, i, h, full, rho0, out):
+def _friction(xs, vol, origin, dims, order, start, xa, ma, aorigin, adims, aorder, astart, i, cell, h, full, rho0, out):
     """For fluid particle i: out = (M_i's 6 entries xx yy zz xy xz yz, sum_b V_b k_ib); M = 0 without walls."""
     eps = eps_of(h)
     f00 = f11 = f22 = f01 = f02 = f12 = 0.0
-    lo0, lo1, lo2, hi0, hi1, hi2 = _cells(xs[i], origin, dims, h)
+    lo0, lo1, lo2, hi0, hi1, hi2 = cell_range(xs[i], origin, dims, cell, h)
     for c2 in range(lo2, hi2 + 1):
         for c1 in range(lo1, hi1 + 1):
             for c0 in range(lo0, hi0 + 1):
@@ -60,7 +49,7 @@ def _friction(xs, vol, origin, dims, order, start, xa, ma, aorigin, adims, aorde
                         f02 += kv * d0 * d2
                         f12 += kv * d1 * d2
     kw = 0.0
-    lo0, lo1, lo2, hi0, hi1, hi2 = _cells(xs[i], aorigin, adims, h)
+    lo0, lo1, lo2, hi0, hi1, hi2 = cell_range(xs[i], aorigin, adims, cell, h)
     for c2 in range(lo2, hi2 + 1):
         for c1 in range(lo1, hi1 + 1):
             for c0 in range(lo0, hi0 + 1):
@@ -101,14 +90,15 @@ def wall_viscous_force(x, v, rho, m, idx, xw, mw, vw, xa, ma, h, nu, full, rho0,
             vs[k, a] = _q(v[j, a])
         mass[k] = _q(m[j])
         vol[k] = mass[k] / _q(rho[j])
-    origin, dims, order, start = _grid(xs, h)
-    aorigin, adims, aorder, astart = _grid(xa, h)
+    cell = GRID_CELL_H * h
+    origin, dims, order, start = _grid(xs, cell)
+    aorigin, adims, aorder, astart = _grid(xa, cell)
     fric = np.full((nc, 7), np.nan)  # per fluid particle, computed when a wall particle first needs it
     eps = eps_of(h)
     out[:] = 0.0
     for b in range(xw.shape[0]):
         f0 = f1 = f2 = 0.0
-        lo0, lo1, lo2, hi0, hi1, hi2 = _cells(xw[b], origin, dims, h)
+        lo0, lo1, lo2, hi0, hi1, hi2 = cell_range(xw[b], origin, dims, cell, h)
         for c2 in range(lo2, hi2 + 1):
             for c1 in range(lo1, hi1 + 1):
                 for c0 in range(lo0, hi0 + 1):
@@ -122,7 +112,7 @@ def wall_viscous_force(x, v, rho, m, idx, xw, mw, vw, xa, ma, h, nu, full, rho0,
                         if math.isnan(fric[i, 6]):
                             _friction(
                                 xs, vol, origin, dims, order, start, xa, ma, aorigin, adims, aorder, astart,
-                                i, h, full, rho0, fric[i],
+                                i, cell, h, full, rho0, fric[i],
                             )  # fmt: skip
                         kw = fric[i, 6]
                         if not kw > 0.0:
