@@ -128,7 +128,8 @@ class Schedule:
 
     EPS = 1e-9  # of an interval: a step landing a rounding error short of a multiple samples it
 
-    def __init__(self, intervals: list[float | None], t: float = 0.0, sampled: bool = True):
+    def __init__(self, intervals: list[float | None], t: float = 0.0, sampled: bool = False):
+        """`sampled`: the gauges were sampled at t (a resumed run), so the next sample is after it."""
         self.intervals = intervals
         self.next = [self._after(i, t) if sampled else 0.0 for i in intervals]
 
