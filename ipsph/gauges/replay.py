@@ -127,7 +127,12 @@ def main(out: Path, gauges_file: Path | None, output: Path | None) -> int:
     path = replay(out, gauges_file, output)
     print(path)
     try:
-        png = plot_gauges(path, Path(out) / io.PLOTS_DIR / f"{path.stem}.png", title=f"Gauges on the frames of {out}")
+        png = plot_gauges(
+            path,
+            Path(out) / io.PLOTS_DIR / f"{path.stem}.png",
+            under=Path(out) / io.GAUGES_CSV,
+            title=f"Gauges on the frames of {out} (grey: the run's own, every step)",
+        )
         print(png)
     except Exception as exc:  # noqa: BLE001 - the numbers are written; a plot failure is a warning
         print(f"ipsph: warning: gauges not plotted: {' '.join(str(exc).split())}", file=sys.stderr)
