@@ -145,6 +145,10 @@ def _threads():
         ('kind = "flow"\nmin = [0.8, 0.0, 0.0]\nmax = [0.8, 0.5, 0.6]\nwall = "tank"', "gauge[0].wall: does not apply"),
         ('kind = "level"\nposition = [0.3, 0.5, 0.3]\ntop = 0.2', "gauge[0].top: 0.2 m is not above"),
         ('kind = "point"', "gauge[0].position: missing"),
+        (
+            'name = "p 1, left"\nkind = "point"\nposition = [0.3, 0.3, 0.3]',
+            "gauge[0].name: 'p 1, left': a gauge's name",
+        ),
     ],
 )
 def test_bad_gauges_exit_2_naming_the_key_before_any_output(tmp_path, capsys, table, expect):

@@ -26,7 +26,7 @@ KEYS: tuple[Param, ...] = (
         "str",
         None,
         "",
-        "Name of the gauge, the prefix of its gauges.csv columns. Default: gauge<i>.",
+        "Name of the gauge (letters, digits, _ and -), the prefix of its gauges.csv columns. Default: gauge<i>.",
         "name",
     ),
     _P(

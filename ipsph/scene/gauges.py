@@ -10,6 +10,7 @@ before allocation by `ipsph.gauges.check_placement` (preflight).
 
 from __future__ import annotations
 
+import re
 from typing import Any
 
 from ..config import GaugeSpec
@@ -17,6 +18,7 @@ from ..params import GAUGE_KEYS, GAUGE_QUANTITIES
 from .text import _fmt, _fmt_vec
 
 _COMMON = ("name", "kind", "quantities", "interval")
+_NAME = re.compile(r"[A-Za-z0-9_-]+")  # a gauge's name heads its gauges.csv columns (`p1.pressure [Pa]`)
 
 
 def gauge_entity(ctx, walk, tree: dict, i: int, entry: dict, walls: tuple[str, ...]) -> GaugeSpec:
@@ -25,6 +27,11 @@ def gauge_entity(ctx, walk, tree: dict, i: int, entry: dict, walls: tuple[str, .
     vals: dict[str, Any] = {}
     walk(ctx, entry, tree, prefix, vals)
     g = {path.split(".", 1)[1]: v for path, v in vals.items()}
+    if "name" in g and not _NAME.fullmatch(g["name"]):
+        raise ctx.fail(
+            f"{prefix}.name",
+            f"{g['name']!r}: a gauge's name is letters, digits, '_' and '-' (it heads the columns of gauges.csv)",
+        )
     kind = g.get("kind")
     if kind is None:
         raise ctx.fail(f"{prefix}.kind", f"missing: one of {', '.join(GAUGE_QUANTITIES)}")
