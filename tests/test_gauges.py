@@ -452,6 +452,74 @@ def test_kill_9_leaves_a_valid_csv_and_resume_carries_on(tmp_path, capsys):
     assert np.array_equal(after["time"], np.concatenate([[0.0], stats])), "one row per step, none twice"
 
 
+# -- the viscous part: a slab sliding into a wall -------------------------------------------------
+# The force on the tank's walls over 0.1 s against the fluid's loss of x momentum (the only
+# external x force is the walls'; XSPH conserves momentum): IPSPH's pressure plus viscous part
+# account for it within 3 % (measured 1.03 of it, no-slip walls, implicit viscosity nu = 0.01).
+# 10 %: the gauge reads the end-of-step fields, the step applied its impulses along the way.
+# DFSPH's frames carry its density solve's pressure only (p = k_dens rho^2): the divergence solve's
+# share, most of an impact's impulse, is in neither its frames nor its gauges (measured 0.77).
+MOMENTUM_TOL = 0.10
+
+
+def sliding_slab(method: str, walls: str = "no-slip") -> dict:
+    return {
+        "simulation": {
+            "method": method,
+            "particle_radius": 0.02,
+            "end_time": 0.1,
+            "viscosity_model": "implicit",
+            "kinematic_viscosity_m2s": 0.01,
+            "viscosity_walls": walls,
+        },
+        "fluid": [{"box": {"min": [0, 0, 0], "max": [0.8, 0.12, 0.4]}, "velocity": [0.5, 0, 0]}],
+        "boundary": [{"name": "tank", "box": {"min": [0, 0, 0], "max": [0.8, 0.5, 0.4]}}],
+        "gauge": [{"name": "f", "kind": "force", "wall": "tank", "quantities": ["force"]}],
+    }
+
+
+@pytest.mark.parametrize(
+    "method",
+    [
+        "ipsph",
+        pytest.param(
+            "dfsph",
+            marks=pytest.mark.xfail(
+                reason="DFSPH's frames lack the divergence solve's pressure (0.77 of the impulse)", strict=False
+            ),
+        ),
+    ],
+)
+def test_force_gauge_accounts_for_the_momentum_the_walls_take(method):
+    sim = Simulation.from_scene(sliding_slab(method))
+    log = GaugeLog(sim)
+    px = [float(sim.masses @ sim.velocities[:, 0])]
+    dts = []
+
+    def on_step(s):
+        log.sample()
+        px.append(float(sim.masses @ sim.velocities[:, 0]))
+        dts.append(s.dt)
+
+    sim.run(on_step=on_step)
+    g = log.arrays()
+    assert np.all(g["f.fx_viscous"][1:6] > 0.0), "the slab drags the tank along"
+    impulse = np.sum(np.array(dts) * (g["f.fx_pressure"] + g["f.fx_viscous"])[1:])  # on the walls
+    assert abs((px[0] - px[-1]) / impulse - 1.0) <= MOMENTUM_TOL, (px[0] - px[-1], impulse)
+
+
+def test_viscous_columns_only_where_walls_have_friction():
+    free = Gauges(scene_from_dict(sliding_slab("ipsph", "free-slip")), walls=_NoWalls())
+    sticky = Gauges(scene_from_dict(sliding_slab("ipsph")), walls=_NoWalls())
+    assert [c.quantity for c in free.columns] == ["fx_pressure", "fy_pressure", "fz_pressure"]
+    assert [c.quantity for c in sticky.columns][3:] == ["fx_viscous", "fy_viscous", "fz_viscous"]
+
+
+class _NoWalls:
+    def centre(self, name):
+        return np.zeros(3)
+
+
 # -- the Python API ---------------------------------------------------------------------------------
 def test_python_api_gives_arrays():
     d = scene_dict(gauge=[{"name": "lvl", "kind": "level", "position": [0.3, 0.0, 0.3], "top": 1.1, "interval": 0.05}])
