@@ -354,6 +354,18 @@ def test_run_writes_gauges_csv_lists_it_and_plots_it(dam_break):
     assert np.array_equal(g["time"], np.concatenate([[0.0], stats])), "one row at t = 0 and one per step"
 
 
+def test_overwrite_removes_the_gauges_of_the_earlier_run(tmp_path, capsys):
+    s = toml_file(tmp_path, DAM.replace("end_time = 0.4", "end_time = 0.04") + GAUGES)
+    out = tmp_path / "out"
+    args = ["-o", out, "--quiet", "--no-render", "--threads", "1"]
+    assert run_cli(capsys, "run", s, *args)[0] == 0
+    assert run_cli(capsys, "gauge", out)[0] == 0 and (out / "gauges_frames.csv").is_file()
+    plain = toml_file(tmp_path, DAM.replace("end_time = 0.4", "end_time = 0.04"), "plain.toml")
+    assert run_cli(capsys, "run", plain, *args, "--overwrite")[0] == 0
+    assert not (out / "gauges.csv").exists() and not (out / "gauges_frames.csv").exists()
+    assert "gauges" not in json.loads((out / RUN_JSON).read_text())
+
+
 def test_after_the_fact_gauges_agree_with_the_run_at_frame_times(dam_break, capsys):
     code, err = run_cli(capsys, "gauge", dam_break)
     assert code == 0, err

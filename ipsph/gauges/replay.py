@@ -22,7 +22,6 @@ from .log import GaugeCSV
 from .placement import check_placement
 from .sampler import Gauges
 
-FRAMES_CSV = "gauges_frames.csv"
 
 # the frame fields each kind of gauge reads (mass, when left out, is the scene's one fluid mass)
 _NEEDS = {
@@ -83,7 +82,7 @@ def replay(out: str | Path, gauges_file: str | Path | None = None, output: str |
                 )
     walls = _frame_walls(out, scene) if any(g.kind == "force" for g in scene.gauges) else None
     gauges = Gauges(scene, walls)
-    target = Path(output) if output is not None else out / FRAMES_CSV
+    target = Path(output) if output is not None else out / io.GAUGES_FRAMES_CSV
     csv = GaugeCSV(target, gauges.headers)
     try:
         for t, name in frames:
