@@ -37,6 +37,7 @@ class Column:
 
 
 TIME = Column("", "time", "s", "simulated time of the sample (the end of a step)")
+_EMPTY = np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])  # a box (lo, hi) that holds nothing
 _AXES = "xyz"
 
 
@@ -138,7 +139,7 @@ class Gauges:
                 self.columns += force_columns(g, c, self.viscous)
             self.spans.append((first, len(self.columns)))
         self.level_max = {g.name: math.nan for g in self.specs if g.kind == "level"}
-        self._boxes = np.zeros((len(self.specs), 6))
+        self._boxes = np.tile(_EMPTY, (len(self.specs), 1))  # a force gauge's box: its wall's, when due
         for k, g in enumerate(self.specs):
             if g.kind != "force":
                 self._boxes[k] = self._box(g)
@@ -181,6 +182,7 @@ class Gauges:
         boxes = self._boxes
         force_walls = {}
         for k in self._forces:
+            boxes[k] = _EMPTY
             if due is None or k in due:
                 g = self.specs[k]
                 xw, mw = self.walls.arrays(g.wall, t)
@@ -188,8 +190,6 @@ class Gauges:
                 reach = (2.0 if self.viscous else 1.0) * self.h  # the viscous part: i's own neighbours too
                 if len(xw):
                     boxes[k, :3], boxes[k, 3:] = xw.min(axis=0) - reach, xw.max(axis=0) + reach
-                else:
-                    boxes[k] = (1.0, 1.0, 1.0, 0.0, 0.0, 0.0)  # empty
         start, idx = K.select(x, boxes)
         out: list[float | None] = [None] * len(self.columns)
         if len(self._points):
