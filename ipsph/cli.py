@@ -1,4 +1,4 @@
-"""Command line: `ipsph run | render | surface | plot | paraview | sweep | bench` (also `python -m ipsph`).
+"""Command line: `ipsph run | render | surface | gauge | plot | paraview | sweep | bench` (also `python -m ipsph`).
 
 User errors print one line on stderr and exit 2; numerical failures exit 3; interrupts 130.
 """
@@ -119,6 +119,22 @@ def _parser() -> argparse.ArgumentParser:
     )
     sf.add_argument("--threads", type=int, metavar="N", help="reconstruction threads (default: all cores)")
 
+    ga = sub.add_parser(
+        "gauge",
+        help="measure gauges on the frames of a finished or running output folder (docs/gauges.md)",
+        description="Measure [[gauge]] tables (pressure, velocity, density at a point; water level; force on a "
+        "wall or body; flux through a rectangle) on every frame of OUT, with the run's scene from run.json. "
+        "At frame times the values agree with the run's own gauges.csv.",
+    )
+    ga.add_argument("out", type=Path, help="output folder of `ipsph run`")
+    ga.add_argument(
+        "--scene",
+        type=Path,
+        metavar="FILE",
+        help="TOML file whose [[gauge]] tables to measure (its other tables are ignored); default: the run's gauges",
+    )
+    ga.add_argument("-o", "--output", type=Path, metavar="CSV", help="CSV to write (default: OUT/gauges_frames.csv)")
+
     pl = sub.add_parser("plot", help="plot density/divergence error, iterations and timings of one or more runs")
     pl.add_argument("out", type=Path, nargs="+", help="output folders (several are overlaid)")
     pl.add_argument("-o", "--output", type=Path, help="folder for the PNGs (default: the first run's plots/)")
@@ -233,6 +249,12 @@ def _surface(args) -> int:
     return 0
 
 
+def _gauge(args) -> int:
+    from .gauges.replay import main as gauge_main
+
+    return gauge_main(args.out, args.scene, args.output)
+
+
 def _plot(args) -> int:
     from .sweeps.records import plot_folders
     from .post.plots import plot_runs
@@ -271,6 +293,7 @@ _COMMANDS = {
     "run": _run,
     "render": _render,
     "surface": _surface,
+    "gauge": _gauge,
     "plot": _plot,
     "sweep": _sweep,
     "paraview": _paraview,

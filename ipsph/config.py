@@ -5,7 +5,7 @@ nothing downstream parses files. Units are SI, y is up. Solver tolerances are in
 percent, as in SPlisHSPlasH (`density_error_pct = 0.05` means 0.05 %). Every default, unit,
 range and description is declared once, in `ipsph.params.PARAMS`: the config tables below are
 generated from it (`_section`), and so are the Scene and the [[fluid]], [[boundary]], motion,
-[[emitter]] and [[sink]] specs (`_declared`: a field per key that lands on them, in PARAMS'
+[[emitter]], [[sink]] and [[gauge]] specs (`_declared`: a field per key that lands on them, in PARAMS'
 order, with its type and default). Only what no key declares is written here: the shared `Body`
 (a shape, its box or mesh, its `Transform`), keyframes, the Scene's tables and where it came from.
 """
@@ -167,6 +167,14 @@ SinkSpec = _spec(
 )
 
 
+GaugeSpec = _spec(
+    "GaugeSpec",
+    """A gauge ([[gauge]]): a time series at a point, along a vertical line, on a wall or through a
+    rectangle (ipsph.gauges); `quantities` resolved to the kind's list, `interval` None: every step.""",
+    _declared("gauge"),
+)
+
+
 def _section(name: str, table: str, doc: str, nested: dict | None = None, **methods) -> type:
     """The frozen dataclass of one scene table: a field per parameter of `table` (its name, type
     and default as params.PARAMS declares them), then the sub-tables in `nested`."""
@@ -279,6 +287,7 @@ Scene = _spec(
         ("boundaries", tuple[BoundarySpec, ...], field(default=())),
         ("emitters", tuple[EmitterSpec, ...], field(default=())),
         ("sinks", tuple[SinkSpec, ...], field(default=())),
+        ("gauges", tuple[GaugeSpec, ...], field(default=())),
         ("domain", DomainConfig, field(default=DomainConfig())),
         ("output", OutputConfig, field(default=OutputConfig())),
         ("render", RenderConfig, field(default=RenderConfig())),

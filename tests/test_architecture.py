@@ -7,7 +7,7 @@ from pathlib import Path
 PACKAGE = Path(__file__).resolve().parents[1] / "ipsph"
 
 # Bottom to top, as the data flows: declared facts, the resolved scene, geometry, the solver's
-# seam and search, walls, emitters, sampling, scene readers, methods, the time loop, writers and
+# seam and search, walls, emitters, sampling, scene readers, methods, the time loop, writers, gauges and
 # post-processing, `ipsph run`, sweeps, benchmarks, the command line. A room may import its own
 # layer and the layers below it.
 LAYERS = [
@@ -23,6 +23,7 @@ LAYERS = [
     {"methods"},
     {"simulation"},
     {"io"},
+    {"gauges"},
     {"post"},
     {"run"},
     {"sweeps"},

@@ -11,6 +11,8 @@ Layout of an output folder OUT (fixed; the runner fills it, `ipsph render` reads
     OUT/bodies/bodies_000000.vtp  the moving walls' and rigid bodies' surfaces per frame (io.bodies)
     OUT/bodies.csv                one row per moving wall per step (io.bodies.BODIES_COLUMNS)
     OUT/stats.csv                 one row per step
+    OUT/gauges.csv                one row per gauge sample ([[gauge]], ipsph.gauges)
+    OUT/gauges_frames.csv         `ipsph gauge OUT`: the gauges measured on the frames
     OUT/run.json                  provenance
     OUT/paraview_view.py          a ParaView script that opens the run with its settings (ipsph.post.paraview)
     OUT/renders/frame_000000.png, OUT/plots/*.png, OUT/video.mp4|gif
@@ -53,6 +55,8 @@ __all__ = [
     "bodies_file",
     "render_file",
     "video_file",
+    "GAUGES_CSV",
+    "GAUGES_FRAMES_CSV",
 ]
 
 RUN_PVD = "run.pvd"
@@ -68,6 +72,8 @@ PARAVIEW_SCRIPT = "paraview_view.py"
 BODIES_DIR = "bodies"
 BODIES_CSV = "bodies.csv"
 CHECKPOINT_FILE = "checkpoint.npz"
+GAUGES_CSV = "gauges.csv"
+GAUGES_FRAMES_CSV = "gauges_frames.csv"  # `ipsph gauge OUT`: the gauges measured on the frames
 
 
 @dataclass(frozen=True)

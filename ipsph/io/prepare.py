@@ -46,6 +46,8 @@ WRITTEN_FILES = (
     io.BOUNDARY_VTU,
     io.BOUNDARY_SURFACE,
     io.STATS_CSV,
+    io.GAUGES_CSV,
+    io.GAUGES_FRAMES_CSV,
     io.RUN_JSON,
     io.CHECKPOINT_FILE,
     io.BODIES_CSV,

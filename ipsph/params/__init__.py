@@ -11,8 +11,8 @@
 The declarations, by topic: facts.py (the facts that are not keys), schema.py (`Param`), and
 the keys: run_keys.py ([simulation], [time_step], [solver.*]), output_keys.py ([output],
 [render], [surface]), body_keys.py ([[fluid]], [[boundary]]), flow_keys.py ([[emitter]],
-[[sink]], [domain]). Adding a scene key: one `_P(...)` entry in its table's file (the field it
-lands in, reading and writing it follow from the entry), then
+[[sink]], [domain]), gauge_keys.py ([[gauge]]). Adding a scene key: one `_P(...)` entry in its table's
+file (the field it lands in, reading and writing it follow from the entry), then
 `python -m ipsph.scene > docs/scene-reference.md`.
 
 This module imports nothing from ipsph, so everything may import it.
@@ -22,7 +22,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from . import body_keys, flow_keys, output_keys, run_keys
+from . import body_keys, flow_keys, gauge_keys, output_keys, run_keys
 from .facts import (  # noqa: F401 - re-exported: every module reads its facts from ipsph.params
     AUTO,
     AUTO_DT_MAX,
@@ -50,9 +50,10 @@ from .facts import (  # noqa: F401 - re-exported: every module reads its facts f
     support,
 )
 from .flow_keys import EMITTER_SHAPES  # noqa: F401 - re-exported
+from .gauge_keys import GAUGE_KEYS, GAUGE_KINDS, GAUGE_QUANTITIES  # noqa: F401 - re-exported
 from .schema import Param
 
-PARAMS: tuple[Param, ...] = run_keys.KEYS + output_keys.KEYS + body_keys.KEYS + flow_keys.KEYS
+PARAMS: tuple[Param, ...] = run_keys.KEYS + output_keys.KEYS + body_keys.KEYS + flow_keys.KEYS + gauge_keys.KEYS
 
 PARAM_BY_PATH: dict[str, Param] = {p.path: p for p in PARAMS}
 _ENTITIES = ("fluid", "boundary")
@@ -83,6 +84,10 @@ SECTION_DOCS = {
     "to end_time (SPlisHSPlasH's Emitters). Its position must lie inside a container's "
     "bounds or the [domain] box. New particles carry rho0 (2r)^3 and fresh ids.",
     "sink": "One [[sink]] table per axis-aligned outflow box: fluid entering it is removed (ids are never reused).",
+    "gauge": "One [[gauge]] table per gauge: a time series of pressure, velocity and density at a point, "
+    "the water level along a vertical line, the force on a wall or body, or the flux through a "
+    "rectangle, written to gauges.csv during the run (docs/gauges.md); `ipsph gauge OUT --scene "
+    "FILE` measures them on a finished run's frames.",
 }
 
 # keys that moved: old path -> new path (a scene that uses the old one gets a one-line error)

@@ -71,6 +71,14 @@ class RunFolder:
             self.last_checkpoint_time = resume.time
             self._delete_frames_from(self.frames)
             self.stats = stats.StatsWriter(out / io.STATS_CSV, stats.STATS_COLUMNS, truncate_after_step=resume.steps)
+        self.gauges = None  # [[gauge]]: gauges.csv, sampled after every step (ipsph.gauges)
+        if scene.gauges:
+            from ..gauges import recorder
+
+            self.gauges = recorder.GaugeLog(
+                sim, out / recorder.GAUGES_CSV, resume_time=None if resume is None else resume.time
+            )
+            self.info["gauges"] = recorder.listing(self.gauges)
         self.surface = self._write_surface()
         self.bodies = None  # moving walls and rigid bodies: bodies.csv, bodies/*.vtp (io.bodies)
         if sim.walls is not None:
@@ -247,8 +255,21 @@ class RunFolder:
         self.solver_maxed += s.solver_maxed
         self.max_speed = max(self.max_speed, float(s.max_speed))
         self.stats.write(row)
+        if self.gauges is not None:
+            self.gauges.sample()
         if self.progress:
             self._progress(s)
+
+    def _plot_gauges(self) -> None:
+        """plots/gauges.png at the end of a run (a failure is a warning: the numbers are in gauges.csv)."""
+        from ..gauges.plot import plot_gauges
+
+        try:
+            path = plot_gauges(self.out / io.GAUGES_CSV, self.out / io.PLOTS_DIR / "gauges.png")
+        except Exception as exc:  # noqa: BLE001 - matplotlib's errors are many; the run's result stands
+            print(f"ipsph: warning: gauges not plotted: {' '.join(str(exc).split())}", file=sys.stderr)
+            return
+        self.info["gauges"]["plot"] = str(path.relative_to(self.out))
 
     def _surfaces_done(self) -> bool:
         """List the surfaces the surface process finished in run.pvd (and render them in surface mode)."""
@@ -309,6 +330,10 @@ class RunFolder:
         if self.progress is True:
             sys.stderr.write("\n")
         self.stats.close()
+        if self.gauges is not None:
+            self.gauges.close()
+            if not interrupted:
+                self._plot_gauges()
         if self.surfacer is not None:  # first: in surface mode its last surfaces still go to the renderer
             self._close_surfaces()
         if self.renderer is not None:

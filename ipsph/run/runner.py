@@ -77,6 +77,9 @@ def _checked_run(scene: Scene, opts: RunOptions, clock: RunClock) -> int:
     if resume is None:
         n_fluid = check_size(scene, opts.max_particles)  # first: it also runs the mesh checks (open, zero volume)
         check_geometry(scene)
+        from ..gauges.placement import check_placement
+
+        check_placement(scene)
         from . import estimate
 
         threads = opts.threads or int(os.environ.get("NUMBA_NUM_THREADS", 0)) or len(os.sched_getaffinity(0))
@@ -288,6 +291,10 @@ def _load_resume(out: Path, scene: Scene) -> ckpt.Checkpoint:
         raise OutputError(
             f"--resume: {out} lacks {out_io.RUN_PVD} or {out_io.STATS_CSV} of the earlier run; "
             f"start afresh with --overwrite"
+        )
+    if scene.gauges and not (out / out_io.GAUGES_CSV).is_file():
+        raise OutputError(
+            f"--resume: {out} lacks {out_io.GAUGES_CSV} of the earlier run; start afresh with --overwrite"
         )
     return ck
 

@@ -6,6 +6,7 @@ allowed values, one-line doc); this package is generated from it:
     validate.py    TOML / dict -> Scene: the tables, the entities, the rules between sections
     values.py      one value against its Param: key trees, did-you-mean, renamed keys, types, ranges
     overrides.py   `--set key.path=value` on the dict, before validation
+    flow.py, bodies.py, gauges.py   the rules between the keys of [[emitter]]/[[sink]], [[boundary]], [[gauge]]
     serialise.py   Scene -> dict (run.json, checkpoint fingerprints)
     reference.py   docs/scene-reference.md (`python -m ipsph.scene`) and `ipsph run --help`'s key list
     text.py        how values and ranges are written in messages
@@ -38,6 +39,7 @@ __all__ = [
     "RENDER_VIEWS",
     "load_scene",
     "scene_from_dict",
+    "read_toml",
     "apply_overrides",
     "scene_to_dict",
     "default_scene_path",
@@ -82,6 +84,15 @@ def load_scene(path: str | Path, overrides: Iterable[str] = ()) -> Scene:
     data = apply_overrides(data, overrides)
     scene = _build_scene(data, resolved.parent, None, resolved, where)
     return dataclasses.replace(scene, warnings=tuple(warnings)) if warnings else scene
+
+
+def read_toml(path: str | Path) -> dict:
+    """A TOML file as a dict; a syntax error is a ConfigError naming the line and column."""
+    given = Path(path)
+    resolved = given.expanduser().resolve()
+    if not resolved.is_file():
+        raise ConfigError(f"file not found: {given} (resolved: {resolved})")
+    return _read_toml(resolved, str(given))
 
 
 def scene_from_dict(

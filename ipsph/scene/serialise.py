@@ -37,11 +37,13 @@ def scene_to_dict(scene: Scene) -> dict:
         d["emitter"] = [_flow_to_dict("emitter", e) for e in scene.emitters]
     if scene.sinks:
         d["sink"] = [_flow_to_dict("sink", e) for e in scene.sinks]
+    if scene.gauges:
+        d["gauge"] = [_flow_to_dict("gauge", g) for g in scene.gauges]
     return d
 
 
 def _flow_to_dict(kind: str, e) -> dict:
-    """An [[emitter]] or [[sink]] table: each key's value by its declared target (None left out)."""
+    """An [[emitter]], [[sink]] or [[gauge]] table: each key's value by its declared target (None left out)."""
     d: dict = {}
     for p in PARAMS:
         if p.path.startswith(kind + "."):

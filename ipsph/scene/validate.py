@@ -172,7 +172,15 @@ def _build_scene(data: dict, base_dir: Path, name: str | None, source: Path | No
     flow.unique_names(ctx, "emitter", emitters)
     flow.unique_names(ctx, "sink", sinks)
     flow.check_domain(ctx, sections["domain"])
-    return Scene(fluids=fluids, boundaries=boundaries, emitters=emitters, sinks=sinks, **sections, **kw)
+    from .gauges import gauge_entity
+
+    walls = tuple(b.name for b in boundaries)
+    gauges = tuple(
+        gauge_entity(ctx, _walk, _ENTITY_TREES["gauge"], i, e, walls)
+        for i, e in enumerate(_entity_list(ctx, data, "gauge"))
+    )
+    flow.unique_names(ctx, "gauge", gauges)
+    return Scene(fluids=fluids, boundaries=boundaries, emitters=emitters, sinks=sinks, gauges=gauges, **sections, **kw)
 
 
 def _check_viscosity(ctx: _Ctx, kw: dict) -> None:

@@ -14,7 +14,7 @@ from ..errors import ConfigError
 from ..params import AUTO, PARAMS, RENAMED, REPLACED, Param
 from .text import _allowed, _fmt, _show
 
-ENTITIES = ("fluid", "boundary", "emitter", "sink")
+ENTITIES = ("fluid", "boundary", "emitter", "sink", "gauge")
 ENTITY_TABLE = {e: f"[[{e}]]" for e in ENTITIES}
 
 
