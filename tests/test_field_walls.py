@@ -40,6 +40,7 @@ def tank(method="dfsph", width=0.56, **sim):
     )
 
 
+@pytest.mark.slow  # compiles the field passes
 def test_a_field_tank_has_no_wall_particles_and_its_lattice_reads_rho0():
     scene = tank()
     fluid_x, fluid_v, boundary_x = sample_scene(scene)[:3]
@@ -65,6 +66,7 @@ def test_a_field_tank_has_no_wall_particles_and_its_lattice_reads_rho0():
     assert np.all(dens.gb[floor_only, 1] < 0.0), "the walls' gradient points into the floor"
 
 
+@pytest.mark.slow  # compiles the field passes
 def test_the_density_pass_adds_the_field_to_the_fluid_sum():
     """wb and gw of the field pass are in rho and gb (and only there: a particle beyond the support
     of every wall reads no wall)."""
@@ -129,6 +131,7 @@ def test_the_field_model_refuses_what_it_cannot_do_yet(tmp_path):
         FieldWalls(scene_from_dict(cuda, name="c"))
 
 
+@pytest.mark.slow  # compiles the field passes
 def test_a_mesh_obstacle_is_a_grid_in_its_own_frame(tmp_path):
     """A closed mesh that is not a box becomes a (phi, I) grid (boundary.mesh_field), placed by
     the spec's rotation and translation: its distance is negative inside, positive outside."""
@@ -150,6 +153,7 @@ def test_a_mesh_obstacle_is_a_grid_in_its_own_frame(tmp_path):
     np.testing.assert_allclose(phi[0], -0.1, atol=0.02)  # 0.1 m inside its three faces at the corner
 
 
+@pytest.mark.slow  # compiles the field passes
 def test_akinci_walls_keep_their_pressure_carried_once():
     """The particle models' walls take the particle's pressure once (bit-identical to the models
     before the field existed); the field mirrors it."""
