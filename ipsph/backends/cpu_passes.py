@@ -28,14 +28,13 @@ from .bodies import (
     VISCOUS_APPLY_ROWS,
     VISCOUS_SETUP_ROWS,
     WALL_RATE_ROWS,
-    density_at,
     density_residual_at,
     divergence_residual_at,
     pf_global_at,
     stiffness_at,
     wall_rate_at,
 )
-from .field_bodies import field_density_at
+from .field_bodies import density_pass_at
 from .viscous_bodies import cg_precondition_at, viscosity_at, viscous_apply_at, viscous_setup_at
 from .kernels import w
 
@@ -84,57 +83,33 @@ def density_factor_lambda(
     for c in prange(bufs.shape[0]):
         lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
         for i in range(lo, hi):
-            if field:  # field walls: their own body, so the particle models run exactly as they did
-                field_density_at(
-                    i,
-                    x,
-                    mf,
-                    xb,
-                    mb,
-                    nf,
-                    cf,
-                    nb,
-                    cb,
-                    h,
-                    rho0,
-                    w0,
-                    fill,
-                    bufs[c],
-                    rho,
-                    alpha,
-                    lam,
-                    err,
-                    n_nbrs,
-                    gb,
-                    pair_grad,
-                    wb,
-                    gw,
-                    mirror,
-                )
-            else:
-                density_at(
-                    i,
-                    x,
-                    mf,
-                    xb,
-                    mb,
-                    nf,
-                    cf,
-                    nb,
-                    cb,
-                    h,
-                    rho0,
-                    w0,
-                    fill,
-                    bufs[c],
-                    rho,
-                    alpha,
-                    lam,
-                    err,
-                    n_nbrs,
-                    gb,
-                    pair_grad,
-                )
+            density_pass_at(
+                i,
+                x,
+                mf,
+                xb,
+                mb,
+                nf,
+                cf,
+                nb,
+                cb,
+                h,
+                rho0,
+                w0,
+                fill,
+                bufs[c],
+                rho,
+                alpha,
+                lam,
+                err,
+                n_nbrs,
+                gb,
+                pair_grad,
+                field,
+                wb,
+                gw,
+                mirror,
+            )
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)

@@ -45,8 +45,7 @@ REDUCE_THREADS = 8 if SIMULATOR else 8192  # partial results of a reduction (fix
 f64 = np.float64
 
 # the bodies as device functions (the same source as the CPU backend's passes)
-density_at = device_function(bodies.density_at)
-field_density_at = device_function(field_bodies.field_density_at)
+density_pass_at = device_function(field_bodies.density_pass_at)
 divergence_residual_at = device_function(bodies.divergence_residual_at)
 density_residual_at = device_function(bodies.density_residual_at)
 stiffness_at = device_function(bodies.stiffness_at)
@@ -81,57 +80,33 @@ def passes(kf: int, kb: int):
         w0 = w(0.0, h)
         buf = cuda.local.array((DENSITY_ROWS, k_all), f64)
         for i in range(cuda.grid(1), x.shape[0], cuda.gridsize(1)):
-            if field:  # field walls: their own body, so the particle models run exactly as they did
-                field_density_at(
-                    i,
-                    x,
-                    mf,
-                    xb,
-                    mb,
-                    nf,
-                    cf,
-                    nb,
-                    cb,
-                    h,
-                    rho0,
-                    w0,
-                    fill,
-                    buf,
-                    rho,
-                    alpha,
-                    lam,
-                    err,
-                    n_nbrs,
-                    gb,
-                    pair_grad,
-                    wb,
-                    gw,
-                    mirror,
-                )
-            else:
-                density_at(
-                    i,
-                    x,
-                    mf,
-                    xb,
-                    mb,
-                    nf,
-                    cf,
-                    nb,
-                    cb,
-                    h,
-                    rho0,
-                    w0,
-                    fill,
-                    buf,
-                    rho,
-                    alpha,
-                    lam,
-                    err,
-                    n_nbrs,
-                    gb,
-                    pair_grad,
-                )
+            density_pass_at(
+                i,
+                x,
+                mf,
+                xb,
+                mb,
+                nf,
+                cf,
+                nb,
+                cb,
+                h,
+                rho0,
+                w0,
+                fill,
+                buf,
+                rho,
+                alpha,
+                lam,
+                err,
+                n_nbrs,
+                gb,
+                pair_grad,
+                field,
+                wb,
+                gw,
+                mirror,
+            )
 
     @cuda.jit
     def divergence_residual(x, v, mf, gb, gvb, nf, cf, pair_grad, h, alpha, n_nbrs, dt, drho, k):
