@@ -39,9 +39,9 @@ scene = "{scene}"
 
 
 def bench_sweep(end_time: float, repeats: int, max_load: float, timeout: float, log) -> dict:
-    from ipsph.sweeps import engine, records, spec
-    from ipsph.scene import default_scene_path
     from ipsph.bench.machine import LoadSampler, timed_ipsph_run
+    from ipsph.scene import default_scene_path
+    from ipsph.sweeps import engine, records, spec
 
     rows = []
     with tempfile.TemporaryDirectory(prefix="ipsph-bench-sweep-") as tmp:

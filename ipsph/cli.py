@@ -180,8 +180,9 @@ def _run(args) -> int:
     scene = load_scene(args.scene if args.scene is not None else default_scene_path(), overrides)
     out = args.output if args.output is not None else scene.output.folder
     try:  # the summary's total counts from the process start: interpreter, imports, scene loading
-        import psutil
         import time
+
+        import psutil
 
         started = time.perf_counter() - max(time.time() - psutil.Process().create_time(), 0.0)
     except Exception:  # pragma: no cover - psutil is a dependency
@@ -202,9 +203,8 @@ def _run(args) -> int:
 
 def _render(args) -> int:
     from .errors import InputError
-    from .post.render import gl_available, render_output
-
     from .io import RUN_PVD
+    from .post.render import gl_available, render_output
 
     if not (args.out / RUN_PVD).exists():
         raise InputError(
@@ -256,8 +256,8 @@ def _gauge(args) -> int:
 
 
 def _plot(args) -> int:
-    from .sweeps.records import plot_folders
     from .post.plots import plot_runs
+    from .sweeps.records import plot_folders
 
     dirs, target = plot_folders(list(args.out), args.output)  # a sweep folder stands for its members
     for p in plot_runs(dirs, target):

@@ -32,8 +32,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .boundary.containers import container_boxes
-from .errors import ConfigError
 from .config import EmitterSpec, Scene
+from .errors import ConfigError
 from .params import BYTES_PER_PARTICLE, spacing
 
 

@@ -23,15 +23,15 @@ import numpy as np
 
 from .backends import Backend, get_backend
 from .boundary import model_of
+from .config import Role, Scene
 from .errors import NumericalFailure
 from .methods import METHODS
 from .methods.base import StepReport
-from .config import Role, Scene
-from .neighbours import search_for
-from .methods.state import ParticleState
-from .sampling.scene import sample, sample_scene, wall_groups  # noqa: F401 - sample_scene: part of the Python API here
 from .methods.settle import SETTLE_MAX_STEPS, hydrostatic_pressure, wants_settle
 from .methods.settle import settle as settle_pass
+from .methods.state import ParticleState
+from .neighbours import search_for
+from .sampling.scene import sample, sample_scene, wall_groups  # noqa: F401 - sample_scene: part of the Python API here
 
 
 @dataclass

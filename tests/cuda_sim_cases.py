@@ -19,10 +19,10 @@ if sys.argv[1:2] != ["ptx"] and not os.environ.get("IPSPH_CASES_ON_DEVICE"):  # 
 import numpy as np  # noqa: E402
 
 from ipsph.backends import Densities, get_backend  # noqa: E402
+from ipsph.config import ViscosityConfig  # noqa: E402
+from ipsph.methods.viscosity import ViscosityScratch, viscous_solve  # noqa: E402
 from ipsph.neighbours import brute_force_neighbours  # noqa: E402
 from ipsph.scene import scene_from_dict  # noqa: E402
-from ipsph.methods.viscosity import ViscosityScratch, viscous_solve  # noqa: E402
-from ipsph.config import ViscosityConfig  # noqa: E402
 from ipsph.simulation import Simulation, sample_scene  # noqa: E402
 
 
@@ -370,6 +370,7 @@ def case_passes() -> dict:
     res["diffs"] = diffs
     # the GPU's out-of-memory error becomes one line (exit 2): the driver's error, as numba-cuda raises it
     from numba.cuda.cudadrv.driver import CudaAPIError
+
     from ipsph.backends import _cuda
     from ipsph.errors import ConfigError
 
@@ -431,9 +432,11 @@ def case_ptx() -> dict:
     the bodies of `bodies` compiled as CUDA device functions, with the argument types the runs used."""
     import importlib
     import subprocess
+
     from numba import types as nt
-    from ipsph.backends._cuda import cuda
+
     from ipsph.backends import cuda_passes
+    from ipsph.backends._cuda import cuda
 
     rec = subprocess.run([sys.executable, __file__, "record"], capture_output=True, text=True, check=True)
     launches = json.loads(rec.stdout)["launches"]

@@ -15,8 +15,8 @@ import pytest
 from benchmarks.__main__ import main as studies_main
 from benchmarks.table1 import table1
 from ipsph.bench import report
-from ipsph.bench.scaling import scaling_table
 from ipsph.bench.ours import run_ours
+from ipsph.bench.scaling import scaling_table
 from ipsph.bench.scenes import (
     PIPELINES,
     pipeline_path,

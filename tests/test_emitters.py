@@ -12,10 +12,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ipsph.run import checkpoint as ckpt
 from ipsph import cli
-from ipsph.run import runner
 from ipsph.flow import nozzle
+from ipsph.run import checkpoint as ckpt
+from ipsph.run import runner
 from ipsph.scene import load_scene, scene_from_dict
 from ipsph.simulation import Simulation
 

@@ -3,8 +3,8 @@ warm starts from rho0 g depth, lowered towards free side faces; fluid in free fa
 
 import numpy as np
 
-from ipsph.scene import scene_from_dict
 from ipsph.methods.settle import hydrostatic_pressure
+from ipsph.scene import scene_from_dict
 from ipsph.simulation import Simulation, sample_scene
 
 R = 0.025

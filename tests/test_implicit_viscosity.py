@@ -15,13 +15,12 @@ import math
 
 import numpy as np
 import pytest
+from test_cli_errors import assert_refused, scene_file
 
 from ipsph.backends import cpu_passes as P
 from ipsph.methods.viscosity import full_trace
 from ipsph.scene import scene_from_dict
 from ipsph.simulation import Simulation
-
-from test_cli_errors import assert_refused, scene_file
 
 # -- tolerances ---------------------------------------------------------------------------------
 # A linear shear u = gamma y next to a flat box wall (no-slip at its surface) is a steady state of

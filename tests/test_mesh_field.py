@@ -28,8 +28,8 @@ import pytest
 
 from ipsph.backends import field_grid as fg
 from ipsph.boundary.mesh_field import MEMORY_FRACTION, MeshField, field_for_spec, mesh_field
-from ipsph.config import BoundarySpec, Transform
 from ipsph.boundary.mesh_integral import MeshIntegral
+from ipsph.config import BoundarySpec, Transform
 from ipsph.errors import MeshError
 from ipsph.geometry.meshes import box_mesh, mesh_arrays, signed_volume
 

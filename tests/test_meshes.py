@@ -6,16 +6,15 @@ import math
 import warnings
 from pathlib import Path
 
+import meshio
 import numpy as np
 import pytest
-
-import meshio
 import pyvista as pv
 from pyvista import examples
 
-from ipsph.geometry import inside, meshes
 from ipsph import config as model
 from ipsph.errors import MeshError
+from ipsph.geometry import inside, meshes
 
 MODELS = Path(__file__).resolve().parents[1] / "meshes"  # shipped with the repository (meshes/PROVENANCE.md)
 

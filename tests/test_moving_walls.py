@@ -7,14 +7,12 @@ import math
 
 import numpy as np
 import pytest
-
-from ipsph.config import Keyframe, MotionSpec
-from ipsph.boundary.motion import Motion
-from ipsph.boundary import MODELS
-from ipsph.simulation import Simulation
-
 from test_cli_errors import assert_refused, cube, scene_file, write_obj
 
+from ipsph.boundary import MODELS
+from ipsph.boundary.motion import Motion
+from ipsph.config import Keyframe, MotionSpec
+from ipsph.simulation import Simulation
 
 # -- motions ----------------------------------------------------------------------------------------
 X0 = np.array([[0.0, 0.0, 0.0], [0.3, 0.1, -0.2], [1.0, 2.0, 3.0]])

@@ -15,9 +15,9 @@ from pathlib import Path
 import pytest
 
 from ipsph import cli
-from ipsph.run import runner
 from ipsph.io import RUN_JSON, RUN_PVD
 from ipsph.io.pvd import PvdSeries
+from ipsph.run import runner
 
 REPO = Path(__file__).resolve().parents[1]
 COARSE = [
@@ -338,6 +338,7 @@ def test_the_summary_splits_the_wall_time(tmp_path, capsys):
 @pytest.mark.slow
 def test_stats_leave_out_the_phases_a_method_lacks_and_errors_are_not_negative(tmp_path, capsys, method, absent):
     import numpy as np
+
     from ipsph.io.stats import read_stats
 
     out = tmp_path / "out"

@@ -10,7 +10,6 @@ import dataclasses
 import numpy as np
 import pytest
 
-from ipsph.backends.kernels import grad_w_factor
 from ipsph.backends.cpu import CPUBackend
 from ipsph.backends.cpu_passes import (
     NO_DISPLACEMENT,
@@ -21,6 +20,7 @@ from ipsph.backends.cpu_passes import (
     divergence_residual,
     xsph,
 )
+from ipsph.backends.kernels import grad_w_factor
 from ipsph.scene import default_scene_path, load_scene
 from ipsph.simulation import Simulation, sample_scene
 

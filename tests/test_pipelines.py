@@ -9,8 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from ipsph.run import runner
 from ipsph.io.provenance import read_run_json
+from ipsph.run import runner
 from ipsph.scene import load_scene
 
 REPO = Path(__file__).resolve().parents[1]
@@ -119,6 +119,7 @@ FIRST_STEPS_DENSITY_ERROR = 0.05
 def test_pipeline_steps_with_every_method(path, method):
     """Three steps of each pipeline with each method (the test above runs each pipeline's own)."""
     import numpy as np
+
     from ipsph.simulation import Simulation, sample_scene
 
     scene = load_scene(path, [f"simulation.particle_radius={COARSE_R}", f"simulation.method={method}"])

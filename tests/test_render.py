@@ -12,13 +12,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from ipsph.config import RenderConfig
 from ipsph.errors import ConfigError, OutputError
 from ipsph.io import frame_file
 from ipsph.io.provenance import write_run_json
 from ipsph.io.pvd import PvdSeries
 from ipsph.io.stats import STATS_COLUMNS, StatsWriter
 from ipsph.io.vtu import write_particles, write_surface
-from ipsph.config import RenderConfig
 from ipsph.post.render import (
     VIEWS,
     camera_for_view,

@@ -14,10 +14,10 @@ import pytest
 
 import ipsph
 from ipsph import cli
-from ipsph.run.folder import RunFolder
 from ipsph.io import RUN_JSON, RUN_PVD, STATS_CSV, vtu
 from ipsph.io.pvd import PvdSeries
 from ipsph.io.stats import read_stats
+from ipsph.run.folder import RunFolder
 
 # every test continues a run: the full suite only
 pytestmark = pytest.mark.slow

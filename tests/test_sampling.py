@@ -12,15 +12,14 @@ import pytest
 import pyvista as pv
 from pyvista import examples
 
-from ipsph.geometry import inside, meshes
 from ipsph import config as model
-from ipsph.geometry import points as geom_points
-from ipsph.geometry import shapes
-from ipsph.sampling import fluid as sampling
 from ipsph.boundary import MODELS as WALL_MODELS
 from ipsph.boundary.models import CONTAINER_OFFSET_D
 from ipsph.boundary.sampling import boundary_positions
 from ipsph.errors import ConfigError, MeshError
+from ipsph.geometry import inside, meshes, shapes
+from ipsph.geometry import points as geom_points
+from ipsph.sampling import fluid as sampling
 
 MODELS = Path(__file__).resolve().parents[1] / "meshes"  # shipped with the repository (meshes/PROVENANCE.md)
 R = 0.025

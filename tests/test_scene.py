@@ -12,8 +12,8 @@ from pathlib import Path
 import pytest
 
 from ipsph import config as model
-from ipsph.errors import ConfigError
 from ipsph.config import Method, Role, Scene, Transform
+from ipsph.errors import ConfigError
 from ipsph.params import RENAMED
 from ipsph.scene import (
     PARAMS,

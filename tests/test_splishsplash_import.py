@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from ipsph.errors import ConfigError
 from ipsph.config import Method, Role, Transform
+from ipsph.errors import ConfigError
 from ipsph.scene import load_scene, scene_from_dict, scene_to_dict
 
 # SPlisHSPlasH's stock scenes, copied into the repository (tests/data/splishsplash/PROVENANCE.md)

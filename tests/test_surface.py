@@ -10,10 +10,10 @@ import sys
 import numpy as np
 import pytest
 
+from ipsph.config import SurfaceConfig
 from ipsph.io import frame_file, surface_file
 from ipsph.io.pvd import PvdSeries
 from ipsph.io.vtu import read_particles, write_particles
-from ipsph.config import SurfaceConfig
 from ipsph.post.surface import SurfaceFailed, read_vtp, reconstruct
 
 R = 0.02
@@ -242,8 +242,8 @@ def test_surface_renders_show_the_mesh_with_the_walls(gl, dam_break, tmp_path):
     import imageio.v3 as iio
 
     from ipsph.config import RenderConfig
-    from ipsph.post.render import FrameRenderer, read_surface, render_output
     from ipsph.io.provenance import read_run_json
+    from ipsph.post.render import FrameRenderer, read_surface, render_output
 
     small = {"width": 320, "height": 180}
     (png,) = render_output(dam_break, mode="surface", frames=slice(-1, None), config_overrides=small)

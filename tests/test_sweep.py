@@ -27,10 +27,10 @@ pytest.importorskip("distributed")  # the test extra installs it: a missing one 
 
 import ipsph
 from ipsph import cli
-from ipsph.sweeps import engine, member, spec
 from ipsph.io import RUN_JSON, RUN_PVD, vtu
 from ipsph.io.pvd import PvdSeries
 from ipsph.scene import default_scene_path
+from ipsph.sweeps import engine, member, spec
 
 END = 1.0  # 125 steps at dt_max = 8 ms: over 1 s of stepping left to stop a member in, a few seconds per member
 SWEEP = f"""

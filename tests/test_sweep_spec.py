@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 
 from ipsph import cli
-from ipsph.sweeps import engine, spec
 from ipsph.scene import default_scene_path, load_scene
+from ipsph.sweeps import engine, spec
 
 
 @pytest.fixture

@@ -140,8 +140,8 @@ THICK_NU = 0.5
 
 
 def test_thick_fluid_steps_within_the_viscous_limit_and_stays_calm():
-    from ipsph.scene import scene_from_dict
     from ipsph.params import VISCOUS_STEP
+    from ipsph.scene import scene_from_dict
     from ipsph.simulation import Simulation
 
     scene = scene_from_dict(

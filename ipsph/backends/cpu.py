@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import cpu_field as F
-from . import cpu_passes as P
 from ..errors import ConfigError
 from ..params import PRECISIONS
+from . import cpu_field as F
+from . import cpu_passes as P
 from .base import Backend, Densities
 
 

@@ -15,8 +15,7 @@ element-wise updates a step needs (one loop each instead of numpy temporaries, w
 import numpy as np
 from numba import njit, prange
 
-from . import kernels
-from . import bodies, field_bodies, field_grid, viscous_bodies, wall_field
+from . import bodies, field_bodies, field_grid, kernels, viscous_bodies, wall_field
 from ._cache import depend_on
 from .bodies import (
     DENSITY_ROWS,
@@ -35,8 +34,8 @@ from .bodies import (
     wall_rate_at,
 )
 from .field_bodies import density_pass_at
-from .viscous_bodies import cg_precondition_at, viscosity_at, viscous_apply_at, viscous_setup_at
 from .kernels import w
+from .viscous_bodies import cg_precondition_at, viscosity_at, viscous_apply_at, viscous_setup_at
 
 CHUNKS = 64  # blocks of particles per pass, each with its own scratch buffer
 

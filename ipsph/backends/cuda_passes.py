@@ -24,8 +24,7 @@ import math
 
 import numpy as np
 
-from . import kernels
-from . import bodies, field_bodies, viscous_bodies
+from . import bodies, field_bodies, kernels, viscous_bodies
 from ._cuda import SIMULATOR, cuda, device_function
 from .bodies import (
     DENSITY_ROWS,

@@ -19,8 +19,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..boundary import MODELS
-from ..params import spacing
 from ..geometry.shapes import scaled_box
+from ..params import spacing
 
 PAD_D = 5  # water around the body, in spacings, on every side
 DEPTH_BELOW_D = 3  # water under a body at its draft, in spacings
@@ -71,8 +71,8 @@ def scene(
 ) -> dict:
     """A tank with one box of `density`, `n_across` d wide and deep and `height` times that tall, at its
     Archimedes draft below the level the water will have (a cube by default)."""
-    from ..simulation import sample_scene
     from ..scene import scene_from_dict
+    from ..simulation import sample_scene
 
     d = spacing(r)
     a = n_across * d

@@ -6,8 +6,8 @@ from __future__ import annotations
 
 import json
 import math
-import statistics
 import os
+import statistics
 import tempfile
 from pathlib import Path
 

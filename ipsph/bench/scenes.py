@@ -18,9 +18,9 @@ import math
 import os
 from pathlib import Path
 
+from ..config import TimeStepConfig
 from ..errors import ConfigError
 from ..params import spacing
-from ..config import TimeStepConfig
 from ..scene import lattice_counts
 
 __all__ = [

@@ -361,7 +361,7 @@ class WallDriver:
         for g in self.force:
             ft = np.asarray(d[f"force.{g}"], dtype=np.float64)
             self.force[g] = (ft[:3].copy(), ft[3:].copy())
-        for i, (grp, name, m) in enumerate(self.kinematic):
+        for _, name, m in self.kinematic:
             m.pivot = np.asarray(d[f"pivot.{name}"], dtype=np.float64).copy()
         self.t_walls = float(d["t_walls"])  # the walls are where the saved step left them (the Boundary's state)
 

@@ -17,8 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..geometry import meshes
 from .. import config as model
+from ..geometry import meshes
 from ..geometry.points import nearest_distance, poisson_filter
 from ..geometry.shapes import cached_samples, check_radius, mesh_path, prepared_mesh, rigid_part, scaled_box, shape_of
 

@@ -22,7 +22,6 @@ from .log import GaugeCSV
 from .placement import check_placement
 from .sampler import Gauges
 
-
 # the frame fields each kind of gauge reads (mass, when left out, is the scene's one fluid mass)
 _NEEDS = {
     "pressure": ("pressure", "density"),
@@ -91,7 +90,7 @@ def replay(out: str | Path, gauges_file: str | Path | None = None, output: str |
             n = len(x)
             x = x.astype(np.float64)
 
-            def field(key, shape=()):
+            def field(key, shape=(), fields=fields, n=n):
                 a = fields.get(key)
                 return np.zeros((n, *shape)) if a is None else np.ascontiguousarray(a, dtype=np.float64)
 

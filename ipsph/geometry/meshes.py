@@ -252,7 +252,7 @@ class MeshReport:
 
 def prepare_mesh(
     source,
-    transform: model.Transform = model.Transform(),
+    transform: model.Transform = model.Transform(),  # noqa: B008 - a frozen dataclass, immutable
     *,
     need_closed: bool = True,
     allow_open: bool = False,

@@ -12,9 +12,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ipsph.geometry import meshes, cache as sample_cache
 from ipsph import config as model
 from ipsph.errors import ConfigError
+from ipsph.geometry import cache as sample_cache
+from ipsph.geometry import meshes
 from ipsph.geometry.inside import inside_mesh
 from ipsph.params import spacing
 

@@ -47,6 +47,7 @@ BODIES_COLUMNS = (
 def moving_surfaces(scene, walls) -> "pv.PolyData":
     """The moving walls' surfaces where they are now, merged (one mesh; `body` cell data = its index)."""
     import pyvista as pv
+
     from ..geometry.shapes import boundary_surface
 
     parts = []

@@ -17,8 +17,8 @@ import re
 import xml.etree.ElementTree as ET
 from pathlib import Path, PurePosixPath
 
-from ..errors import OutputError
 from .. import io as _io  # PARTS, read when used
+from ..errors import OutputError
 from . import atomic_path
 
 __all__ = ["PvdSeries"]

@@ -14,9 +14,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import OutputError, WriteError
-from . import atomic_path
-
 from ..params import PHASES
+from . import atomic_path
 
 __all__ = ["StatsWriter", "read_stats", "STATS_COLUMNS", "STEP_COLUMNS", "step_row"]
 

@@ -10,8 +10,8 @@ import time
 
 import numpy as np
 
-from ..errors import ConfigError
 from ..config import Role, Scene
+from ..errors import ConfigError
 
 # The pre-pass before t = 0 (method.md section 1, "A start at rest"): the method's own steps of
 # dt_max with the velocities damped by SETTLE_DAMPING after each, until SETTLE_HOLD steps in a row

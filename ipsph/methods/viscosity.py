@@ -21,8 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..backends.viscous_bodies import eps_of
 from ..backends.kernels import grad_w_factor
+from ..backends.viscous_bodies import eps_of
 from ..params import spacing as lattice_spacing
 
 WALL_FACTOR = {"no-slip": 1.0, "free-slip": 0.0}  # simulation.viscosity_walls -> s_w (viscous_bodies.viscous_setup_at)

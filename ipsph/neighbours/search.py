@@ -20,11 +20,11 @@ more than K neighbours the build reports it and the caller grows K and rebuilds.
 
 from __future__ import annotations
 
-
 import numpy as np
 
 from ..errors import NumericalFailure
 from .cpu import (
+    _wall_candidate_pass,
     append_lower,
     bounds,
     cell_ids,
@@ -33,10 +33,8 @@ from .cpu import (
     gather_neighbours,
     gather_walls,
     near_cells,
-    _wall_candidate_pass,
 )
 from .rows import grown_stride
-
 
 # Cell size per axis, in units of the support H. Short cells along x (the axis along which a
 # row of cells is contiguous in memory) cut each row's candidate range close to the sphere's

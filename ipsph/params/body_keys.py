@@ -7,8 +7,8 @@ a new key is one line here. What only some bodies take is declared below the tab
 
 from __future__ import annotations
 
-from .schema import Param, _P, _Z3, _transform
 from .facts import BOUNDARY_ROLES, MOTION_TYPES
+from .schema import _P, _Z3, Param, _transform
 
 KEYS: tuple[Param, ...] = (
     # -- [[fluid]] ------------------------------------------------------------------------------

@@ -2,8 +2,7 @@
 
 from __future__ import annotations
 
-from .schema import Param, _P
-
+from .schema import _P, Param
 
 EMITTER_SHAPES = ("box", "circle")  # emitter.shape: a rectangular or a circular nozzle
 

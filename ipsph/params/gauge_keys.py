@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .schema import Param, _P
+from .schema import _P, Param
 
 # gauge.kind -> the quantities it can record (gauge.quantities), the first ones its default
 GAUGE_QUANTITIES = {

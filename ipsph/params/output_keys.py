@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-from .schema import Param, _P
 from pathlib import Path
 
 from .facts import OUTPUT_FIELDS, RENDER_MODES, RENDER_VIEWS
+from .schema import _P, Param
 
 KEYS: tuple[Param, ...] = (
     # -- [output] -------------------------------------------------------------------------------

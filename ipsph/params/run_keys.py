@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from .schema import Param, _P, _limits
 from .facts import (
     AUTO_DT_MAX,
     BACKEND_NAMES,
@@ -13,6 +12,7 @@ from .facts import (
     VISCOSITY_MODELS,
     VISCOSITY_WALLS,
 )
+from .schema import _P, Param, _limits
 
 KEYS: tuple[Param, ...] = (
     # -- top level ------------------------------------------------------------------------------

@@ -58,7 +58,7 @@ def reconstruct(
     velocities: np.ndarray | None,
     particle_radius: float,
     rest_density: float,
-    config: SurfaceConfig = SurfaceConfig(),
+    config: SurfaceConfig = SurfaceConfig(),  # noqa: B008 - a frozen dataclass, immutable
     clip_bounds=None,
 ) -> Surface:
     """The surface of one frame of fluid particles (positions in m); raises SurfaceFailed.
@@ -251,9 +251,8 @@ def surface_output(out_dir, *, fmt: str = "vtp", overrides=(), threads: int | No
     from .. import io as out_io
     from ..errors import OutputError
     from ..io.provenance import read_run_json
-    from ..io.pvd import PvdSeries
+    from ..io.pvd import PvdSeries, frame_index
     from ..io.vtu import read_particles
-    from ..io.pvd import frame_index
     from ..scene import surface_config
 
     log = log or (lambda msg: print(msg, file=sys.stderr))

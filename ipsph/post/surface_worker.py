@@ -33,8 +33,8 @@ def _worker(jobs, results):
         if setup is None:
             return
         out, radius, rho0, config, clip, threads = setup
-        from . import surface
         from ..io import surface_file
+        from . import surface
 
         surface.set_threads(threads)
         while True:

@@ -28,9 +28,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..config import Scene
 from ..errors import OutputError
 from ..io import CHECKPOINT_FILE  # noqa: F401 - where a run folder keeps it
-from ..config import Scene
 
 FORMAT = 2
 _EXCLUDED = ("output", "render", "name", "source")  # do not change the physics

@@ -12,10 +12,10 @@ from pathlib import Path
 
 import numpy as np
 
-from . import checkpoint as ckpt
 from .. import io
-from ..post import paraview
 from ..io import provenance, pvd, stats, vtu
+from ..post import paraview
+from . import checkpoint as ckpt
 
 PROGRESS_EVERY_S = 10.0  # progress lines when stderr is not a terminal (a log file, a batch job)
 INTERRUPT_RENDER_WAIT_S = 10.0  # after Ctrl-C the frames in flight get this long to render; --resume does the rest
@@ -168,6 +168,7 @@ class RunFolder:
         if not self.scene.boundaries:
             return None
         import pyvista as pv
+
         from ..geometry.shapes import boundary_surface
 
         static = [spec for spec in self.scene.boundaries if not spec.moving]  # moving ones: bodies/

@@ -11,9 +11,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..sampling.budget import _fluid_extent, available_memory, check_fluid_count, default_max_particles
-from ..errors import ConfigError
 from ..config import Scene
+from ..errors import ConfigError
+from ..sampling.budget import _fluid_extent, available_memory, check_fluid_count, default_max_particles
 
 RENDER_BYTES_PER_PIXEL = 112  # render process peak: static layers, depth/owner/shade buffers, frame and
 # PNG rows, VTK's and llvmpipe's framebuffers (measured 100 B/px at 3840x2160)

@@ -22,18 +22,18 @@ from pathlib import Path
 
 import numpy as np
 
-from . import checkpoint as ckpt
 from .. import io as out_io
-from ..post import paraview
+from ..config import Scene
 from ..errors import EXIT_INTERRUPTED, EXIT_OK, IpsphError, NumericalFailure, OutputError
 from ..io import provenance
 from ..io.prepare import check_output_folder, prepare_output_folder
-from .clock import Interrupted, RunClock, StopOnSignal
-from .folder import RunFolder
-from ..config import Scene
-from .preflight import check_backend, check_geometry, check_render_size, check_size
+from ..post import paraview
 from ..sampling.scene import SampledScene, check_sampled, sample
 from ..simulation import Simulation
+from . import checkpoint as ckpt
+from .clock import Interrupted, RunClock, StopOnSignal
+from .folder import RunFolder
+from .preflight import check_backend, check_geometry, check_render_size, check_size
 
 
 @dataclass

@@ -26,9 +26,11 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ipsph.geometry import meshes
 from ipsph import config as model
 from ipsph.errors import ConfigError
+from ipsph.geometry import meshes
+from ipsph.geometry.inside import inside_mesh
+from ipsph.geometry.points import nearest_distance
 from ipsph.geometry.shapes import (
     cached_samples,
     check_radius,
@@ -39,9 +41,7 @@ from ipsph.geometry.shapes import (
     shape_of,
     solid_mask,
 )
-from ipsph.geometry.inside import inside_mesh
 from ipsph.params import spacing
-from ipsph.geometry.points import nearest_distance
 
 # Fluid particles closer than d = 2r to a wall particle are removed: the first lattice layer sits
 # d from the walls (method.md: particles at r from a wall make DFSPH/IPSPH blow up). The factor

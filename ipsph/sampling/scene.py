@@ -15,9 +15,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..boundary import model_of
+from ..config import Scene
 from ..errors import ConfigError
 from ..geometry.meshes import fmt_point
-from ..config import Scene
 
 
 @dataclass

@@ -23,8 +23,8 @@ import dataclasses
 from pathlib import Path
 from typing import Iterable
 
-from ..errors import ConfigError
 from ..config import Scene, SurfaceConfig
+from ..errors import ConfigError
 from ..params import OUTPUT_FIELDS, PARAM_BY_PATH, PARAMS, RENDER_VIEWS, Param
 from .overrides import apply_overrides
 from .reference import key_help, reference_markdown

@@ -16,7 +16,6 @@ import typing
 from pathlib import Path
 from typing import Any
 
-from ..errors import ConfigError, read_text
 from ..config import (
     ENUMS,
     BoundarySpec,
@@ -30,16 +29,17 @@ from ..config import (
     TimeStepConfig,
     Transform,
 )
+from ..errors import ConfigError, read_text
 from ..params import AUTO_DT_MAX, PARAM_BY_PATH, PARAMS, Param, default, spacing
 from ..params.body_keys import MESH_ONLY
 from .text import _fmt, _fmt_vec, _show, _tname
 from .values import (  # noqa: F401 - ENTITIES, ENTITY_TABLE, renamed_error: read from here too
-    ENTITIES,
-    ENTITY_TABLE,
-    _convert,
     _ENTITY_TREES,
     _ROOT,
     _TOP_KEYS,
+    ENTITIES,
+    ENTITY_TABLE,
+    _convert,
     _Ctx,
     _get,
     _tree,

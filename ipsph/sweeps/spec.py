@@ -233,9 +233,9 @@ def validate(sweep: Sweep, max_particles: int | None = None, concurrent: int = 1
     Returns the members' Scenes. Raises ConfigError/InputError `"<sweep file>: member <name>: <why>"`
     (one line, the key named by the scene loader). `concurrent`: members that may run side by side on
     this machine, which share its memory budget when `max_particles` is not given."""
+    from ..errors import InputError
     from ..run import preflight
     from ..sampling.budget import default_max_particles
-    from ..errors import InputError
     from ..scene import load_scene
 
     limit = max_particles or max(1, default_max_particles() // max(1, concurrent))

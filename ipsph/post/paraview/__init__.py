@@ -105,10 +105,10 @@ PART_FILES = {
 
 def view_settings(out_dir) -> dict:
     """The values paraview_view.py needs, from the run in `out_dir` (run.json, frame 0, stats)."""
-    from .. import render
     from ...io.provenance import read_run_json
     from ...io.pvd import PvdSeries
     from ...io.vtu import read_particles
+    from .. import render
 
     out = Path(out_dir)
     if not (out / out_io.RUN_JSON).is_file() or not (out / out_io.RUN_PVD).is_file():

@@ -9,7 +9,6 @@ import numpy as np
 from ...errors import ConfigError
 from .style import VIEW_ANGLE_DEG, VIEWS
 
-
 # The part of the image the domain is framed into, in normalized image coordinates (-1 .. 1):
 # right of FRAME_RIGHT is the colour bar (it starts at 88.5 % of the width), FRAME_V leaves the
 # top for the time label and the bottom for the title.

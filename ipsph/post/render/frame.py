@@ -9,10 +9,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ...errors import ConfigError
 from ...config import RenderConfig
+from ...errors import ConfigError
 from .camera import camera_for_view
 from .gl import _use_egl
+from .layers import SplatLayers
 from .png import save_png
 from .style import (
     BACKGROUND,
@@ -28,9 +29,7 @@ from .style import (
     _ui_scale,
     speed_lut_rgb,
 )
-from .layers import SplatLayers
 from .text import _scalar_bar, _set_font
-
 
 # Lit sphere impostor for vtkPointGaussianMapper splats: a normal from the splat offset, Lambert
 # shading from a fixed key light (upper left, towards the viewer) plus ambient.

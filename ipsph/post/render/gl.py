@@ -9,7 +9,6 @@ import signal
 import subprocess
 import sys
 
-
 GL_HINT = "install an EGL + Mesa stack (apt-get install -y --no-install-recommends libegl1 libgl1-mesa-dri)"
 
 

@@ -7,12 +7,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ...errors import ConfigError, OutputError
 from ...config import RenderConfig
-from ...params import RENDER_MODES
+from ...errors import ConfigError, OutputError
 from ...io import STATS_CSV, render_file, video_file
 from ...io.pvd import frame_index
 from ...io.vtu import read_surface
+from ...params import RENDER_MODES
 from .frame import FrameRenderer
 
 

@@ -8,7 +8,6 @@ import numpy as np
 
 from ...params import RENDER_VIEWS
 
-
 VIEWS = RENDER_VIEWS  # name -> (direction from the focal point to the camera, view-up), ipsph.params
 
 

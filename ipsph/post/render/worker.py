@@ -57,8 +57,8 @@ def _worker(jobs, results, parent_pid=None):
 
     vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_OFF)
     vtkObject.GlobalWarningDisplayOff()
-    from .frame import FrameRenderer
     from ...io.vtu import read_surface
+    from .frame import FrameRenderer
     from .png import save_png
     from .splat import warm_up
 

@@ -9,7 +9,6 @@ from ...errors import ConfigError, read_text
 from .bodies import BodyReader
 from .reader import Reader
 
-
 __all__ = ["scene_dict", "DEFAULT_END_TIME"]
 
 # SPlisHSPlasH's own defaults where a scene leaves a key out (doc/file_format.md, Simulation.cpp)
