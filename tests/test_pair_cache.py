@@ -24,8 +24,6 @@ from ipsph.backends.kernels import grad_w_factor
 from ipsph.scene import default_scene_path, load_scene
 from ipsph.simulation import Simulation, sample_scene
 
-NO_FIELD, NO_FIELD_GRAD = np.zeros(0), np.zeros((0, 3))  # no field walls: their arrays have no rows
-
 # The cached and the uncached passes sum the same float64 products in another association
 # (mf (sum f d) against sum (mf f d)): they agree to a few ulps of the largest term, far below
 # anything a wrong factor, sign, index or stale cache produces (>= 1e-3 relative).
@@ -76,9 +74,6 @@ def _filled(sim, by):
             d.n_nbrs,
             d.gb,
             cache,
-            NO_FIELD,
-            NO_FIELD_GRAD,
-            1.0,
         )
     else:
         xsph(

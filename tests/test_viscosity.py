@@ -66,9 +66,6 @@ def lattice_block(n1, support_in_d):
         np.empty(n, np.int64),
         gb,
         NO_PAIR_CACHE,
-        np.zeros(0),
-        np.zeros((0, 3)),
-        1.0,
     )
     inner = np.all((x > x.min(0) + h) & (x < x.max(0) - h), axis=1)
     return x, mf, rho, gb, lam, nf, cf, h, inner

@@ -97,30 +97,13 @@ class CPUBackend(Backend):
 
     # -- per-particle passes ------------------------------------------------------------------------
     def densities(self, x, mf, walls, nl, h, rho0, out: Densities, pairs):
-        if walls.field is not None:
+        args = (x, mf, walls.x, walls.m, nl.fluid, nl.fluid_count, nl.boundary, nl.boundary_count, h, rho0)
+        dens = (out.rho, out.alpha, out.lam, out.err, out.n_nbrs, out.gb, pairs)
+        if walls.field is None:
+            P.density_factor_lambda(*args, *dens)
+        else:  # field walls: their reading first, then the density pass that adds it (its own launcher)
             self.wall_field(x, walls.field, rho0, out)
-        P.density_factor_lambda(
-            x,
-            mf,
-            walls.x,
-            walls.m,
-            nl.fluid,
-            nl.fluid_count,
-            nl.boundary,
-            nl.boundary_count,
-            h,
-            rho0,
-            out.rho,
-            out.alpha,
-            out.lam,
-            out.err,
-            out.n_nbrs,
-            out.gb,
-            pairs,
-            out.wb,
-            out.gw,
-            self.wall_mirror,
-        )
+            F.field_density_factor_lambda(*args, *dens, out.wb, out.gw, self.wall_mirror)
         return pairs
 
     def wall_field(self, x, field, rho0, out: Densities) -> None:

@@ -3,11 +3,14 @@
 import numpy as np
 from numba import njit, prange
 
-from . import field_bodies, field_grid, kernels
+from . import bodies, field_bodies, field_grid, kernels
 from . import wall_field as field_maths
 from ._cache import depend_on
-from .field_bodies import object_field, wall_field_at, wall_pressure_at, wall_project_at
+from .bodies import DENSITY_ROWS
+from .cpu_passes import _buffers, _chunk
+from .field_bodies import field_density_at, object_field, wall_field_at, wall_pressure_at, wall_project_at
 from .kernels import FASTMATH as FAST
+from .kernels import w
 
 
 # The prange loops call the bodies through these non-inlined wrappers: numba's parallel array
@@ -28,6 +31,46 @@ def _distance_one(i, p, h, objects, out):
     for k in range(objects[0].shape[0]):
         best = min(best, object_field(k, p[i, 0], p[i, 1], p[i, 2], h, objects)[0])
     out[i] = best
+
+
+@njit(parallel=True, fastmath=FAST, cache=True)
+def field_density_factor_lambda(
+    x, mf, xb, mb, nf, cf, nb, cb, h, rho0, rho, alpha, lam, err, n_nbrs, gb, pair_grad, wb, gw, mirror
+):
+    """cpu_passes.density_factor_lambda with the field walls' wb, gw added (field_density_at): a launcher
+    of its own, so the particle models' density pass compiles and runs exactly as it did."""
+    fill = pair_grad.shape[0] == x.shape[0]
+    w0 = w(0.0, h)
+    bufs = _buffers(DENSITY_ROWS, nf, nb)
+    for c in prange(bufs.shape[0]):
+        lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
+        for i in range(lo, hi):
+            field_density_at(
+                i,
+                x,
+                mf,
+                xb,
+                mb,
+                nf,
+                cf,
+                nb,
+                cb,
+                h,
+                rho0,
+                w0,
+                fill,
+                bufs[c],
+                rho,
+                alpha,
+                lam,
+                err,
+                n_nbrs,
+                gb,
+                pair_grad,
+                wb,
+                gw,
+                mirror,
+            )
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)
@@ -60,6 +103,15 @@ def min_distance(p, h, objects, out):
 
 
 depend_on(
-    (wall_field, wall_pressure, wall_project, min_distance, _field_one, _project_one, _distance_one),
-    (__file__, field_bodies.__file__, field_maths.__file__, field_grid.__file__, kernels.__file__),
+    (
+        field_density_factor_lambda,
+        wall_field,
+        wall_pressure,
+        wall_project,
+        min_distance,
+        _field_one,
+        _project_one,
+        _distance_one,
+    ),
+    (__file__, field_bodies.__file__, bodies.__file__, field_maths.__file__, field_grid.__file__, kernels.__file__),
 )

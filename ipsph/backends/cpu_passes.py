@@ -15,7 +15,7 @@ element-wise updates a step needs (one loop each instead of numpy temporaries, w
 import numpy as np
 from numba import njit, prange
 
-from . import bodies, field_bodies, field_grid, kernels, viscous_bodies, wall_field
+from . import bodies, kernels, viscous_bodies
 from ._cache import depend_on
 from .bodies import (
     DENSITY_ROWS,
@@ -27,13 +27,13 @@ from .bodies import (
     VISCOUS_APPLY_ROWS,
     VISCOUS_SETUP_ROWS,
     WALL_RATE_ROWS,
+    density_at,
     density_residual_at,
     divergence_residual_at,
     pf_global_at,
     stiffness_at,
     wall_rate_at,
 )
-from .field_bodies import density_pass_at
 from .kernels import w
 from .viscous_bodies import cg_precondition_at, viscosity_at, viscous_apply_at, viscous_setup_at
 
@@ -70,19 +70,15 @@ def _chunk(c, n_chunks, n):
 
 # -- per-particle passes ---------------------------------------------------------------------------
 @njit(parallel=True, fastmath=FAST, cache=True)
-def density_factor_lambda(
-    x, mf, xb, mb, nf, cf, nb, cb, h, rho0, rho, alpha, lam, err, n_nbrs, gb, pair_grad, wb, gw, mirror
-):
-    """bodies.density_at for every particle; fills the pair cache if it has a row per particle, adds
-    the field walls' wb, gw if they have one."""
+def density_factor_lambda(x, mf, xb, mb, nf, cf, nb, cb, h, rho0, rho, alpha, lam, err, n_nbrs, gb, pair_grad):
+    """bodies.density_at for every particle; fills the pair cache if it has a row per particle."""
     fill = pair_grad.shape[0] == x.shape[0]
-    field = wb.shape[0] == x.shape[0]
     w0 = w(0.0, h)
     bufs = _buffers(DENSITY_ROWS, nf, nb)
     for c in prange(bufs.shape[0]):
         lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
         for i in range(lo, hi):
-            density_pass_at(
+            density_at(
                 i,
                 x,
                 mf,
@@ -104,10 +100,6 @@ def density_factor_lambda(
                 n_nbrs,
                 gb,
                 pair_grad,
-                field,
-                wb,
-                gw,
-                mirror,
             )
 
 
@@ -353,5 +345,5 @@ def warm_stiffness(k_total, scale, rate, n_nbrs, min_nbrs, warm):
 
 # -- cache=True keys a pass's cache on this file only: it also depends on the bodies it inlines
 _PASSES = (density_factor_lambda, divergence_residual, density_residual, apply_stiffness, xsph, pf_global, wall_rate)
-_INLINED = (bodies, viscous_bodies, field_bodies, wall_field, field_grid, kernels)
+_INLINED = (bodies, viscous_bodies, kernels)
 depend_on((*_PASSES, viscous_setup, viscous_apply, cg_precondition), (__file__, *(m.__file__ for m in _INLINED)))

@@ -197,9 +197,6 @@ class CUDABackend(Backend):
             out.n_nbrs,
             out.gb,
             pairs,
-            out.wb,
-            out.gw,
-            self.wall_mirror,
         )
         return pairs
 

@@ -24,7 +24,7 @@ import math
 
 import numpy as np
 
-from . import bodies, field_bodies, kernels, viscous_bodies
+from . import bodies, kernels, viscous_bodies
 from ._cuda import SIMULATOR, cuda, device_function
 from .bodies import (
     DENSITY_ROWS,
@@ -44,7 +44,7 @@ REDUCE_THREADS = 8 if SIMULATOR else 8192  # partial results of a reduction (fix
 f64 = np.float64
 
 # the bodies as device functions (the same source as the CPU backend's passes)
-density_pass_at = device_function(field_bodies.density_pass_at)
+density_at = device_function(bodies.density_at)
 divergence_residual_at = device_function(bodies.divergence_residual_at)
 density_residual_at = device_function(bodies.density_residual_at)
 stiffness_at = device_function(bodies.stiffness_at)
@@ -71,40 +71,13 @@ def passes(kf: int, kb: int):
     k_all = kf + kb
 
     @cuda.jit
-    def density_factor_lambda(
-        x, mf, xb, mb, nf, cf, nb, cb, h, rho0, rho, alpha, lam, err, n_nbrs, gb, pair_grad, wb, gw, mirror
-    ):
+    def density_factor_lambda(x, mf, xb, mb, nf, cf, nb, cb, h, rho0, rho, alpha, lam, err, n_nbrs, gb, pair_grad):
         fill = pair_grad.shape[0] == x.shape[0]
-        field = wb.shape[0] == x.shape[0]
         w0 = w(0.0, h)
         buf = cuda.local.array((DENSITY_ROWS, k_all), f64)
         for i in range(cuda.grid(1), x.shape[0], cuda.gridsize(1)):
-            density_pass_at(
-                i,
-                x,
-                mf,
-                xb,
-                mb,
-                nf,
-                cf,
-                nb,
-                cb,
-                h,
-                rho0,
-                w0,
-                fill,
-                buf,
-                rho,
-                alpha,
-                lam,
-                err,
-                n_nbrs,
-                gb,
-                pair_grad,
-                field,
-                wb,
-                gw,
-                mirror,
+            density_at(
+                i, x, mf, xb, mb, nf, cf, nb, cb, h, rho0, w0, fill, buf, rho, alpha, lam, err, n_nbrs, gb, pair_grad
             )
 
     @cuda.jit

@@ -28,7 +28,7 @@ import math
 
 from numba import njit
 
-from .bodies import density_at, density_core, density_store
+from .bodies import density_core, density_store
 from .field_grid import grid_distance, grid_kernel_integral
 from .kernels import FASTMATH
 from .wall_field import box_field, half_density, sphere_field, wall_reading
@@ -233,66 +233,3 @@ def field_density_at(
     nn += FIELD_NEIGHBOURS * wb[i] / rho0
     sum_sq = g0 * g0 + g1 * g1 + g2 * g2 + (mirror - 1.0) * (b0 * g0 + b1 * g1 + b2 * g2) + s2
     density_store(i, rho0, rho_i, sum_sq, nn, b0, b1, b2, rho, alpha, lam, err, n_nbrs, gb)
-
-
-@njit(inline="always", fastmath=FAST)
-def density_pass_at(
-    i,
-    x,
-    mf,
-    xb,
-    mb,
-    nf,
-    cf,
-    nb,
-    cb,
-    h,
-    rho0,
-    w0,
-    fill,
-    buf,
-    rho,
-    alpha,
-    lam,
-    err,
-    n_nbrs,
-    gb,
-    pair_grad,
-    field,
-    wb,
-    gw,
-    mirror,
-):
-    """The density pass's body: field_density_at with field walls, else bodies.density_at (the
-    particle models keep their own body, bit for bit)."""
-    if field:
-        field_density_at(
-            i,
-            x,
-            mf,
-            xb,
-            mb,
-            nf,
-            cf,
-            nb,
-            cb,
-            h,
-            rho0,
-            w0,
-            fill,
-            buf,
-            rho,
-            alpha,
-            lam,
-            err,
-            n_nbrs,
-            gb,
-            pair_grad,
-            wb,
-            gw,
-            mirror,
-        )
-    else:
-        density_at(
-            i, x, mf, xb, mb, nf, cf, nb, cb, h, rho0, w0, fill, buf, rho, alpha, lam, err, n_nbrs, gb, pair_grad
-        )
