@@ -20,7 +20,7 @@ import numpy as np
 from ipsph.scene import load_scene
 from ipsph.simulation import Simulation
 
-SCENE = Path(__file__).resolve().parents[1] / "ipsph" / "scenes" / "default.toml"
+SCENE = Path(__file__).resolve().parents[1] / "ipsph" / "scene" / "default.toml"
 
 
 def measure(model: str, nu: float, span: float) -> None:
