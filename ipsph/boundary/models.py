@@ -45,6 +45,9 @@ class BoundaryModel:
     # the walls' share in the pressure terms, a multiple of the particle's own (Backend.wall_mirror):
     # 1 = once (Akinci), 2 = mirrored onto the wall (method.md section 11)
     pressure_mirror: float = 1.0
+    # how far inside its faces a box fluid's first layer starts (d): a spacing for wall particles
+    # (the layer's rest distance from theirs, SPlisHSPlasH's FluidBlocks rule), d/2 for field walls
+    fluid_inset_d: float = 1.0
 
     def offset(self, spec: BoundarySpec, r: float) -> float:
         """How far the layer of `spec` sits behind its surface, away from the fluid (m)."""
@@ -128,6 +131,7 @@ MODELS = {
             0.0,
             0.0,
             pressure_mirror=2.0,
+            fluid_inset_d=0.5,
         ),
     )
 }

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..boundary import model_of
 from ..config import Scene
 from ..errors import ConfigError
 from ..sampling.budget import _fluid_extent, available_memory, check_fluid_count, default_max_particles
@@ -35,7 +36,7 @@ def check_render_size(scene: Scene) -> None:
 def check_size(scene: Scene, max_particles: int | None) -> int:
     """Estimate the fluid count before sampling and refuse what would not fit (exit 2); with
     emitters, the planned capacity (initial fluid + every layer they can emit) must fit too."""
-    n = check_fluid_count(scene.fluids, scene.particle_radius, max_particles)
+    n = check_fluid_count(scene.fluids, scene.particle_radius, max_particles, model_of(scene).fluid_inset_d)
     if scene.emitters:
         from ..flow import check_capacity, check_placement
 

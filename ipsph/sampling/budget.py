@@ -26,12 +26,13 @@ def default_max_particles() -> int:
     return int(available_memory() // 2 // BYTES_PER_PARTICLE)
 
 
-def check_fluid_count(fluids, radius: float, max_particles: int | None) -> int:
-    """The estimated fluid count of `fluids` at `radius`; ConfigError above the limit (default: memory)."""
+def check_fluid_count(fluids, radius: float, max_particles: int | None, inset_d: float = 1.0) -> int:
+    """The estimated fluid count of `fluids` at `radius` (box fluids' first layers inset_d * d inside
+    their faces, the boundary model's `fluid_inset_d`); ConfigError above the limit (default: memory)."""
     limit = max_particles or default_max_particles()
     total = 0
     for spec in fluids:
-        n = sampling.estimate_fluid_count(spec, radius)
+        n = sampling.estimate_fluid_count(spec, radius, inset_d)
         total += n
         if total > limit:
             ext = _extent_hint(spec)

@@ -55,9 +55,10 @@ def default_overlap_distance(radius: float) -> float:
 
 
 # ----------------------------------------------------------------------------- fluid
-def _fluid_box_counts(lo: np.ndarray, hi: np.ndarray, d: float) -> np.ndarray:
+def _fluid_box_counts(lo: np.ndarray, hi: np.ndarray, d: float, inset_d: float = 1.0) -> np.ndarray:
+    """Layers of a box fluid whose first and last layers sit inset_d * d inside its faces."""
     # floor(x + 0.5 + eps): round half up, robust to 19.999999 and 13.5 alike
-    return np.maximum(np.floor((hi - lo) / d + 0.5 + 1e-9).astype(np.int64) - 1, 0)
+    return np.maximum(np.floor((hi - lo) / d - 2.0 * inset_d + 1.5 + 1e-9).astype(np.int64), 0)
 
 
 def _grid(origin: np.ndarray, counts: np.ndarray, d: float) -> np.ndarray:
@@ -74,14 +75,14 @@ def _mesh_lattice(bounds, d: float) -> tuple[np.ndarray, np.ndarray]:
     return origin, counts
 
 
-def _sample_fluid(spec: model.FluidSpec, r: float, frame=None) -> np.ndarray:
+def _sample_fluid(spec: model.FluidSpec, r: float, frame=None, inset_d: float = 1.0) -> np.ndarray:
     d = spacing(r)
     if shape_of(spec) == "box":
         lo, hi = scaled_box(spec)
-        counts = _fluid_box_counts(lo, hi, d)
+        counts = _fluid_box_counts(lo, hi, d, inset_d)
         if np.any(counts == 0):
             return np.empty((0, 3), dtype=np.float64)
-        return meshes.transform_points(_grid(lo + d, counts, d), rigid_part(spec.transform))
+        return meshes.transform_points(_grid(lo + inset_d * d, counts, d), rigid_part(spec.transform))
     mesh, report = prepared_mesh(mesh_path(spec), spec.transform, need_closed=True, allow_open=spec.allow_open_mesh)
     if frame is None:
         origin, counts = _mesh_lattice(report.bounds, d)
@@ -106,12 +107,13 @@ def _frame_points(frame, points: np.ndarray, d: float) -> np.ndarray:
     return np.ascontiguousarray(origin + d * (ijk @ rot))
 
 
-def lattice_frame(scene: model.Scene):
+def lattice_frame(scene: model.Scene, inset_d: float = 1.0):
     """(origin, rotation rows) of the scene's rest lattice, or None (no fluid).
 
     The first box-shaped container's (a box, or a mesh that is an axis-aligned box after scaling):
-    its first layer sits d inside the walls, where a box fluid filling it puts its first layer
-    (SPlisHSPlasH's FluidBlocks rule). Without one, the first fluid body's own lattice. Mesh fluids
+    its first layer sits inset_d * d inside the walls, where a box fluid filling it puts its first
+    layer (the boundary model's `fluid_inset_d`: d for wall particles, SPlisHSPlasH's FluidBlocks
+    rule; d/2 for field walls). Without one, the first fluid body's own lattice. Mesh fluids
     are sampled on this lattice, so a mesh fluid and a box fluid filling the same tank are the same
     particles; `rest_lattice` continues it to fit the walls to.
     """
@@ -130,13 +132,13 @@ def lattice_frame(scene: model.Scene):
             if box is None:
                 continue
             lo = np.asarray(box[0], dtype=np.float64)
-        return _rigid_frame(lo + d, rigid_part(spec.transform))
+        return _rigid_frame(lo + inset_d * d, rigid_part(spec.transform))
     if not scene.fluids:
         return None
     spec = scene.fluids[0]
     if shape_of(spec) == "box":
         lo, _ = scaled_box(spec)
-        return _rigid_frame(lo + d, rigid_part(spec.transform))
+        return _rigid_frame(lo + inset_d * d, rigid_part(spec.transform))
     _, report = prepared_mesh(mesh_path(spec), spec.transform, need_closed=True, allow_open=spec.allow_open_mesh)
     origin, _ = _mesh_lattice(report.bounds, d)
     return origin, np.eye(3)
@@ -182,23 +184,29 @@ def rest_lattice(scene: model.Scene, boundary_x: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(np.concatenate(kept)) if kept else np.empty((0, 3))
 
 
-def fluid_positions(spec: model.FluidSpec, radius: float, *, cache: bool = True, frame=None) -> np.ndarray:
+def fluid_positions(
+    spec: model.FluidSpec, radius: float, *, cache: bool = True, frame=None, inset_d: float = 1.0
+) -> np.ndarray:
     """(N,3) float64 fluid particle positions for a box or mesh fluid body (module docstring);
-    a mesh fluid on the lattice `frame` (`lattice_frame`) when given, else on its own centred one."""
+    a mesh fluid on the lattice `frame` (`lattice_frame`) when given, else on its own centred one;
+    a box fluid's first layer inset_d * d inside its faces."""
     r = check_radius(radius)
-    extra = () if frame is None or shape_of(spec) == "box" else (frame[0].tolist(), frame[1].tolist())
-    sample = (lambda: _sample_fluid(spec, r, frame)) if extra else (lambda: _sample_fluid(spec, r))
+    box = shape_of(spec) == "box"
+    extra = () if frame is None or box else (frame[0].tolist(), frame[1].tolist())
+    if box and inset_d != 1.0:
+        extra = (inset_d,)
+    sample = (lambda: _sample_fluid(spec, r, frame, inset_d)) if extra else (lambda: _sample_fluid(spec, r))
     return cached_samples("fluid", spec, r, cache, sample, extra)
 
 
-def estimate_fluid_count(spec: model.FluidSpec, radius: float) -> int:
+def estimate_fluid_count(spec: model.FluidSpec, radius: float, inset_d: float = 1.0) -> int:
     """Particle count before sampling: exact for boxes; volume / d³ for closed meshes (the lattice
     count estimates the volume to a few percent); the bounding-box lattice (an upper bound) for open ones."""
     r = check_radius(radius)
     d = spacing(r)
     if shape_of(spec) == "box":
         lo, hi = scaled_box(spec)
-        return int(np.prod(_fluid_box_counts(lo, hi, d)))
+        return int(np.prod(_fluid_box_counts(lo, hi, d, inset_d)))
     _, report = prepared_mesh(mesh_path(spec), spec.transform, need_closed=True, allow_open=spec.allow_open_mesh)
     if report.closed:
         return int(round(report.volume / d**3))

@@ -194,9 +194,10 @@ def _sample(scene: Scene):
 
     r = scene.particle_radius
     xs, vs = [np.zeros((0, 3))], [np.zeros((0, 3))]
-    frame = sampling.lattice_frame(scene)  # mesh fluids share the walls' rest lattice
+    inset = model_of(scene).fluid_inset_d
+    frame = sampling.lattice_frame(scene, inset)  # mesh fluids share the walls' rest lattice
     for spec in scene.fluids:
-        x = sampling.fluid_positions(spec, r, frame=frame)
+        x = sampling.fluid_positions(spec, r, frame=frame, inset_d=inset)
         xs.append(x)
         vs.append(np.tile(np.asarray(spec.velocity, dtype=np.float64), (len(x), 1)))
     fluid_x, fluid_v = np.concatenate(xs), np.concatenate(vs)
