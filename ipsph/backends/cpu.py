@@ -107,7 +107,7 @@ class CPUBackend(Backend):
         return pairs
 
     def wall_field(self, x, field, rho0, out: Densities) -> None:
-        F.wall_field(x, field.h, rho0, field.delta_h, field.arrays(), out.wb, out.gw, out.gvb, out.ws)
+        F.wall_field(x, field.h, rho0, field.wall, field.arrays(), out.wb, out.gw, out.gvb, out.ws)
 
     def wall_pressure(self, dens: Densities, g, rho0, dt, v) -> None:
         F.wall_pressure(dens.gw, dens.ws, g, rho0, dt, v)

@@ -16,8 +16,8 @@ from .kernels import w
 # The prange loops call the bodies through these non-inlined wrappers: numba's parallel array
 # analysis cannot follow the box integral's tuple arithmetic once it is inlined into the loop.
 @njit(fastmath=FAST, cache=True)
-def _field_one(i, x, h, rho0, delta_h, objects, wb, gw, gvb, ws):
-    wall_field_at(i, x, h, rho0, delta_h, objects, wb, gw, gvb, ws)
+def _field_one(i, x, h, rho0, wall, objects, wb, gw, gvb, ws):
+    wall_field_at(i, x, h, rho0, wall, objects, wb, gw, gvb, ws)
 
 
 @njit(fastmath=FAST, cache=True)
@@ -74,10 +74,10 @@ def field_density_factor_lambda(
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)
-def wall_field(x, h, rho0, delta_h, objects, wb, gw, gvb, ws):
+def wall_field(x, h, rho0, wall, objects, wb, gw, gvb, ws):
     """field_bodies.wall_field_at for every particle."""
     for i in prange(x.shape[0]):
-        _field_one(i, x, h, rho0, delta_h, objects, wb, gw, gvb, ws)
+        _field_one(i, x, h, rho0, wall, objects, wb, gw, gvb, ws)
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)

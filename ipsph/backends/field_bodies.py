@@ -5,17 +5,18 @@ Each wall object k is a shape in its own frame (a box of half extents e_k, a bal
 placed by a rotation R_k and a position c_k: x_l = R_k^T (x - c_k). Its solid is the shape (an
 obstacle or a body, sign +1) or the shape's complement (a container, sign -1, fluid inside).
 `wall_field.*_field` gives the signed distance phi (positive in the fluid) and the kernel integral
-I of the shape's solid with their gradients; solids of different objects do not overlap, so the
-integrals add, and the walls' density and its gradient follow from the sum (brief section 7):
+I of the shape's solid; the passes read the wall potential of phi (`object_potential`: a box
+container per face, everything else through its one phi), and the potentials add (method.md
+section 11):
 
-    I_i = sum_k I_k(x_i),   rho_b,i = rho0 Lambda(I_i),   gb_i = rho0 Lambda'(I_i) sum_k grad I_k
-    gvb_i = rho0 Lambda'(I_i) sum_k grad I_k . v_k(x_i),   v_k(x) = u_k + omega_k x (x - c_k)
+    mu_i = sum_k mu_k(x_i),   rho_b,i = rho0 (1 - exp(-mu_i)),   gb_i = rho0 exp(-mu_i) sum_k grad mu_k
+    gvb_i = rho0 exp(-mu_i) sum_k grad mu_k . v_k(x_i),   v_k(x) = u_k + omega_k x (x - c_k)
 
-(Lambda the calibrated reading, `wall_field.wall_reading`). rho_b and gb take the place of the
-wall particles' sum_b m_b W_ib and sum_b m_b grad W_ib in `bodies.density_at`, so every later pass
-reads the walls through gb and gvb as it does with particles.
+rho_b and gb take the place of the wall particles' sum_b m_b W_ib and sum_b m_b grad W_ib in
+`bodies.density_at`, so every later pass reads the walls through gb and gvb as it does with
+particles, each once (the wall term k_i gb_i is the gradient of the density it reads).
 
-A mesh is a GRID object: its (phi, I) grid in the body frame (`field_grid`, built by
+A mesh is a GRID object: its (phi, I) grid (the potential reads phi) in the body frame (`field_grid`, built by
 `boundary.mesh_field`), grid number size_k[0] in the header `hdr` and the shared `pool`.
 
 The objects travel as one tuple of arrays, `objects` (`boundary.field_walls.FieldWalls.arrays`):
@@ -31,7 +32,7 @@ from numba import njit
 from .bodies import density_core, density_store
 from .field_grid import grid_distance, grid_kernel_integral
 from .kernels import FASTMATH
-from .wall_field import box_field, half_density, sphere_field, wall_reading
+from .wall_field import box_field, box_potential, face_potential, sphere_field
 
 FAST = FASTMATH
 
@@ -103,18 +104,48 @@ def object_velocity(k, d0, d1, d2, vel, omega):
 
 
 @njit(inline="always", fastmath=FAST)
-def wall_field_at(i, x, h, rho0, delta_h, objects, wb, gw, gvb, ws):
-    """The walls' density wb_i = rho0 Lambda(I_i), its gradient gw_i, the moving walls' rate term
-    gvb_i and the mean depth of the wall below i, ws_i = s(psi_i) = H [q + Phi(q) / A(q)],
-    q = (psi_i + delta)/H (brief section 4: where the hydrostatic wall pressure is extrapolated to)."""
+def object_potential(k, p0, p1, p2, h, b, reach, objects):
+    """(mu, grad mu) of object k at the world point p, in world axes (the wall potential of
+    `wall_field.box_potential`; a ball and a grid read their signed distance)."""
+    kind, sign, rot, pos, size, _, _, _, _, _, hdr, pool = objects
+    l0, l1, l2, _, _, _ = _local(k, p0, p1, p2, rot, pos)
+    container = sign[k] < 0.0
+    if kind[k] == BOX:
+        m, m0, m1, m2 = box_potential(l0, l1, l2, size[k, 0], size[k, 1], size[k, 2], h, container, b, reach)
+    else:
+        if kind[k] == GRID:
+            f, f0, f1, f2 = grid_distance(hdr, int(size[k, 0]), pool, l0, l1, l2)
+            if container:
+                f, f0, f1, f2 = -f, -f0, -f1, -f2
+        else:
+            s = math.sqrt(l0 * l0 + l1 * l1 + l2 * l2)
+            n0, n1, n2 = (l0 / s, l1 / s, l2 / s) if s > 0.0 else (0.0, 0.0, 1.0)
+            f, f0, f1, f2 = s - size[k, 0], n0, n1, n2
+            if container:
+                f, f0, f1, f2 = -f, -f0, -f1, -f2
+        m, dm = face_potential(f / h, b, reach)
+        m0, m1, m2 = dm * f0 / h, dm * f1 / h, dm * f2 / h
+    w0 = rot[k, 0, 0] * m0 + rot[k, 0, 1] * m1 + rot[k, 0, 2] * m2
+    w1 = rot[k, 1, 0] * m0 + rot[k, 1, 1] * m1 + rot[k, 1, 2] * m2
+    w2 = rot[k, 2, 0] * m0 + rot[k, 2, 1] * m1 + rot[k, 2, 2] * m2
+    return m, w0, w1, w2
+
+
+@njit(inline="always", fastmath=FAST)
+def wall_field_at(i, x, h, rho0, wall, objects, wb, gw, gvb, ws):
+    """The walls' density wb_i = rho0 Lambda_i, Lambda_i = 1 - exp(-sum_k mu_k(x_i)), its gradient
+    gw_i = rho0 exp(-mu) sum_k grad mu_k, and the moving walls' rate term gvb_i = sum_k gw_i,k . v_k(x_i)
+    (method.md section 11; wall = (b, U) of `wall_field.face_potential`). ws_i = 0: the potential
+    carries the wall pressure once, with no hydrostatic increment."""
     kind, sign, rot, pos, size, reach, vel, omega, qtab, otab, hdr, pool = objects
+    b, u_reach, s_wall = wall
     p0, p1, p2 = x[i, 0], x[i, 1], x[i, 2]
     m = g0 = g1 = g2 = gv = 0.0
     for k in range(kind.shape[0]):
         l0, l1, l2, d0, d1, d2 = _local(k, p0, p1, p2, rot, pos)
         if _culled(k, l0, l1, l2, kind, sign, size, reach):
             continue
-        _, _, _, _, mk, n0, n1, n2 = object_field(k, p0, p1, p2, h, objects)
+        mk, n0, n1, n2 = object_potential(k, p0, p1, p2, h, b, u_reach, objects)
         m += mk
         g0 += n0
         g1 += n1
@@ -127,11 +158,10 @@ def wall_field_at(i, x, h, rho0, delta_h, objects, wb, gw, gvb, ws):
         gvb[i] = 0.0
         ws[i] = 0.0
         return
-    lam, dlam, q = wall_reading(min(m, 1.0), delta_h)
-    a = half_density(q + delta_h)
-    ws[i] = h * (q + delta_h + lam / a) if a > 0.0 else 0.0
-    s = rho0 * dlam
-    wb[i] = rho0 * lam
+    ws[i] = s_wall * h
+    e = math.exp(-m)
+    s = rho0 * e
+    wb[i] = rho0 * (1.0 - e)
     gw[i, 0] = s * g0
     gw[i, 1] = s * g1
     gw[i, 2] = s * g2

@@ -342,3 +342,31 @@ def plane_field(x, y, z, nx, ny, nz, offset, h):
     q = d / h
     g = -half_density(q) / h
     return d, nx, ny, nz, half_mass(q), g * nx, g * ny, g * nz
+
+
+# -- the wall potential (the reading the passes use) -------------------------------------------------
+@njit(inline="always", fastmath=FAST)
+def face_potential(u, b, reach):
+    """(mu, dmu/du) of one face at signed distance u (units of H, positive in the fluid):
+    mu = b (1 - u/U)^3 below U = `reach`, 0 beyond (C2 at U; it keeps growing inside the solid)."""
+    t = max(1.0 - u / reach, 0.0)
+    return b * t * t * t, -3.0 * b * t * t / reach
+
+
+@njit(inline="always", fastmath=FAST)
+def box_potential(x, y, z, ex, ey, ez, h, container, b, reach):
+    """(mu, grad mu) of a box in its frame (physical units). A container's faces add: each face f
+    at distance y_f from the point (inside the box) gives face_potential(y_f/H), so an edge or
+    corner reads 1 - prod_f (1 - lambda_f) through the reading 1 - exp(-mu). An obstacle reads its
+    one signed distance: mu = face_potential(phi/H)."""
+    if not container:
+        d, n0, n1, n2 = box_distance(x, y, z, ex, ey, ez)
+        m, dm = face_potential(d / h, b, reach)
+        return m, dm * n0 / h, dm * n1 / h, dm * n2 / h
+    m0, a0 = face_potential((ex - x) / h, b, reach)
+    m1, a1 = face_potential((ex + x) / h, b, reach)
+    m2, a2 = face_potential((ey - y) / h, b, reach)
+    m3, a3 = face_potential((ey + y) / h, b, reach)
+    m4, a4 = face_potential((ez - z) / h, b, reach)
+    m5, a5 = face_potential((ez + z) / h, b, reach)
+    return m0 + m1 + m2 + m3 + m4 + m5, (a1 - a0) / h, (a3 - a2) / h, (a5 - a4) / h

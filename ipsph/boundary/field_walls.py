@@ -102,7 +102,7 @@ class FieldWalls:
         self.hdr, self.pool = _pool(grids)
         self.pos0, self.rot0 = self.pos.copy(), self.rot.copy()  # the placement at t = 0
         self.qtab, self.otab = field.tables()
-        self.delta_h = field.DELTA_H
+        self.wall = field.wall_profile()
         self.phi_min = PHI_MIN_D * scene.spacing
 
     @property
@@ -162,5 +162,5 @@ class FieldWalls:
         p = np.ascontiguousarray(np.asarray(points, dtype=np.float64).reshape(-1, 3))
         wb, gw, gvb, ws = np.zeros(len(p)), np.zeros((len(p), 3)), np.zeros(len(p)), np.zeros(len(p))
         if len(p) and self.n:
-            wall_field(p, self.h, rho0, self.delta_h, self.arrays(), wb, gw, gvb, ws)
+            wall_field(p, self.h, rho0, self.wall, self.arrays(), wb, gw, gvb, ws)
         return wb, gw

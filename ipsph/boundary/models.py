@@ -130,7 +130,7 @@ MODELS = {
             "surfaces",
             0.0,
             0.0,
-            pressure_mirror=2.0,
+            pressure_mirror=1.0,
             fluid_inset_d=0.5,
         ),
     )
