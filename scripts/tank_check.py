@@ -38,7 +38,19 @@ def layers(sim, scene, r):
     return rel1, rel2, np.mean(y[first]) / d, slope
 
 
-def tank(method, model, r, t_end, extra=None):
+def fastest(sim, r):
+    """(speed, depth below the surface / d, distance to the nearest side wall / d, |v_y| / |v|) of the
+    fastest particle of one state."""
+    x, v = sim.positions, sim.velocities
+    speed = np.linalg.norm(v, axis=1)
+    i = int(np.argmax(speed))
+    surface = np.sort(x[:, 1])[-int(len(x) ** (2 / 3)) :].mean() + r
+    side = min(x[i, 0], 0.6 - x[i, 0], x[i, 2], 0.6 - x[i, 2])
+    d = 2 * r
+    return speed[i], (surface - x[i, 1]) / d, side / d, abs(v[i, 1]) / max(speed[i], 1e-30)
+
+
+def tank(method, model, r, t_end, extra=None, where=False):
     sim_keys = {"method": method, "particle_radius": r, "end_time": t_end, "boundary_model": model}
     sim_keys.update(extra or {})
     scene = scene_from_dict(
@@ -51,13 +63,15 @@ def tank(method, model, r, t_end, extra=None):
         name=f"tank-{method}-{model}",
     )
     sim = Simulation(scene, *sample_scene(scene)[:3])
-    vmax, energy, proj, snaps = [], [], [0], []
+    vmax, energy, proj, snaps, places = [], [], [0], [], []
     t0 = time.perf_counter()
 
     def on_step(s):
         vmax.append(s.max_speed)
         energy.append(s.kinetic_energy)
         proj[0] += getattr(s, "wall_projections", 0)
+        if where and s.time >= t_end / 4:
+            places.append((s.time, *fastest(sim, r)))
 
     def on_frame(s, k):
         if s.time >= t_end - AVERAGE_S - 1e-9:
@@ -83,7 +97,22 @@ def tank(method, model, r, t_end, extra=None):
         projections=proj[0],
         settle=sim.settle_report.get("converged"),
         wall_s=wall,
+        places=np.array(places).reshape(-1, 5),
     )
+
+
+def print_where(places):
+    """Where the fastest particle of each step after t/4 was, and the five fastest events."""
+    t, speed, depth, side, vertical = places.T
+    print(
+        f"  fastest after t/4: {np.mean(depth < 2):.0%} of steps within 2 d of the surface, "
+        f"{np.mean(side < 1.5):.0%} within 1.5 d of a side wall, {np.mean(vertical > 0.7):.0%} moving vertically; "
+        f"per-step peak median {np.median(speed):.3f}, q0.9 {np.quantile(speed, 0.9):.3f} m/s"
+    )
+    for k in np.argsort(speed)[-5:][::-1]:
+        print(
+            f"    t {t[k]:.3f} s  {speed[k]:.3f} m/s  depth {depth[k]:.2f} d  side {side[k]:.2f} d  |vy|/|v| {vertical[k]:.2f}"
+        )
 
 
 if __name__ == "__main__":
@@ -92,6 +121,7 @@ if __name__ == "__main__":
     ap.add_argument("--methods", nargs="+", default=["ipsph", "dfsph"])
     ap.add_argument("--r", type=float, default=0.02)
     ap.add_argument("--t", type=float, default=4.0)
+    ap.add_argument("--where", action="store_true", help="where the fastest particle of each step is")
     a = ap.parse_args()
     print(
         f"method model n walls | p1/hyd p2/hyd | y1/d | slope (means over the last {AVERAGE_S:g} s) | vmax (after t/4) | "
@@ -99,10 +129,12 @@ if __name__ == "__main__":
     )
     for model in a.models:
         for method in a.methods:
-            o = tank(method, model, a.r, a.t)
+            o = tank(method, model, a.r, a.t, where=a.where)
             print(
                 f"{o['method']:6s} {o['model']:14s} {o['n']:5d} {o['walls']:6d} | {o['first_p']:.3f} {o['second_p']:.3f} | "
                 f"{o['first_h_d']:.3f} | {o['slope']:+.3%} | {o['vmax']:.3f} ({o['vmax_late']:.3f}) | "
                 f"{o['energy'][0]:.4f} -> {o['energy'][1]:.4f} | {o['projections']} | {o['settle']} | {o['wall_s']:.0f}",
                 flush=True,
             )
+            if a.where:
+                print_where(o["places"])
