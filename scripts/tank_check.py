@@ -14,6 +14,8 @@ from ipsph import Simulation
 from ipsph.sampling.scene import sample_scene
 from ipsph.scene import scene_from_dict
 
+TANK = [0.6, 1.0, 0.6]  # the container box from the origin [m]; the fluid fills it to FILL
+FILL = [0.6, 0.6, 0.6]
 AVERAGE_S = 1.0  # the layer figures are means over the frames of the last second (the tank is never quite still)
 
 
@@ -22,7 +24,7 @@ def layers(sim, scene, r):
     pressure against rho0 g depth below the surface, the first layer's height, the fitted dp/d(depth)."""
     x, p = sim.positions, sim.pressures
     d, h, g, rho0 = 2 * r, sim.support, 9.81, scene.density0
-    lo, hi = np.zeros(3), np.array([0.6, 1.0, 0.6])
+    lo, hi = np.zeros(3), np.array(TANK)
     inner_xz = np.all(x[:, [0, 2]] > lo[[0, 2]] + h, axis=1) & np.all(x[:, [0, 2]] < hi[[0, 2]] - h, axis=1)
     top_layer = np.sort(x[inner_xz, 1])[-int(inner_xz.sum() ** (2 / 3)) :]
     surface = top_layer.mean() + r
@@ -45,7 +47,7 @@ def fastest(sim, r):
     speed = np.linalg.norm(v, axis=1)
     i = int(np.argmax(speed))
     surface = np.sort(x[:, 1])[-int(len(x) ** (2 / 3)) :].mean() + r
-    side = min(x[i, 0], 0.6 - x[i, 0], x[i, 2], 0.6 - x[i, 2])
+    side = min(x[i, 0], TANK[0] - x[i, 0], x[i, 2], TANK[2] - x[i, 2])
     d = 2 * r
     return speed[i], (surface - x[i, 1]) / d, side / d, abs(v[i, 1]) / max(speed[i], 1e-30)
 
@@ -57,8 +59,8 @@ def tank(method, model, r, t_end, extra=None, where=False):
         {
             "simulation": sim_keys,
             "time_step": {"dt_max": 0.005},
-            "fluid": [{"name": "column", "box": {"min": [0, 0, 0], "max": [0.6, 0.6, 0.6]}}],
-            "boundary": [{"name": "tank", "role": "container", "box": {"min": [0, 0, 0], "max": [0.6, 1.0, 0.6]}}],
+            "fluid": [{"name": "column", "box": {"min": [0, 0, 0], "max": FILL}}],
+            "boundary": [{"name": "tank", "role": "container", "box": {"min": [0, 0, 0], "max": TANK}}],
         },
         name=f"tank-{method}-{model}",
     )
