@@ -309,6 +309,12 @@ def test_scaling_peer_scene_is_the_same_dam_break(tmp_path):
     assert meshes.check_closed(tri) == 0  # closed and consistently wound
     # > 0 only if every face winds outwards
     assert meshes.signed_volume(tri) == pytest.approx(np.prod(np.subtract(tank.box_max, tank.box_min)), rel=1e-12)
+    # the peer filters with our XSPH coefficient and runs no viscosity model (read back by our importer,
+    # which follows SPlisHSPlasH's numbering: 2 was XSPH until 2.11, Bender 2017's implicit solve since)
+    peer = load_scene(path)
+    assert (peer.viscosity_model, peer.viscosity, peer.kinematic_viscosity_m2s) == ("xsph", ours.viscosity, 0.0)
+    ignored, _, notes = peer.warnings[0].partition("notes:")
+    assert "Materials" not in ignored and "read as" not in notes  # no material key dropped, no number guessed
 
 
 def test_resolve_scene_names_and_errors(tmp_path):

@@ -235,6 +235,8 @@ def test_peer_runs_the_scaling_dam_break(tmp_path):
     assert r["fluid_particles"] == scaling_count(n)
     assert r["boundary_handling_method"] == 0 and r["boundary_particles"] > 1000
     assert r["steps"] in (4, 5) and r["dt_max"] == pytest.approx(0.005)
+    # our XSPH coefficient and no viscosity model (2.19 reads both from their named blocks)
+    assert r["solver"]["viscosity_model"] == "None" and r["solver"]["xsph"] == pytest.approx(0.01)
     (x0, y0, z0), (x1, y1, z1) = r["fluid_bbox_end"]
     assert min(x0, y0, z0) > 0.0  # still inside the tank's corner where the column stands
 

@@ -288,3 +288,65 @@ def test_weiler_2018_viscosity_is_imported_as_the_implicit_model(tmp_path, numbe
     weiler["viscosityBoundary"] = 0  # no wall friction: free-slip
     s = load_scene(scene_file(tmp_path, data, "b.json"))
     assert s.viscosity_walls == "free-slip"
+
+
+# SPlisHSPlasH's viscosityMethod numbers by release (ipsph/scene/splishsplash/viscosity.py's table):
+# 2.12.0 took XSPH out of the list, so Weiler 2018 went from 7 to 6 and Takahashi 2015 from 6 to 5.
+def test_a_2_12_flat_material_numbers_weiler_2018_six(tmp_path):
+    """The thick slump of issue 42: a 2.12-2.15 scene (flat keys) with viscosityMethod 6 and
+    nu = 1 m^2/s is Weiler 2018, not an XSPH filter of strength 1 (the old numbers' Takahashi 2015,
+    whose fallback took the viscosity's effect away)."""
+    weiler = {"viscosity": 1.0, "viscosityBoundary": 1.0, "viscoMaxIter": 100, "viscoMaxError": 0.01}
+    data = {"FluidBlocks": [BLOCK], "Materials": [{"id": "Fluid", "viscosityMethod": 6, **weiler}]}
+    s = load_scene(scene_file(tmp_path, data))
+    assert (s.viscosity_model, s.kinematic_viscosity_m2s, s.viscosity) == ("implicit", 1.0, 0.0)
+    # the flat settings are Weiler 2018's: mapped, not ignored
+    assert (s.viscosity_walls, s.solver.viscosity.max_iterations, s.solver.viscosity.error_pct) == ("no-slip", 100, 1.0)
+    w = s.warnings[0]
+    assert "ignored" not in w
+    assert "viscosityMethod=6 read as Weiler et al. 2018" in w and "6 was Takahashi" in w  # the assumption, said
+
+
+def test_a_2_11_flat_material_numbers_weiler_2018_seven(tmp_path):
+    weiler = {"viscosity": 5.0, "viscosityBoundary": 0.0, "viscoMaxIter": 200, "viscoMaxError": 0.05}
+    data = {"FluidBlocks": [BLOCK], "Materials": [{"id": "Fluid", "viscosityMethod": 7, **weiler}]}
+    s = load_scene(scene_file(tmp_path, data))
+    assert (s.viscosity_model, s.kinematic_viscosity_m2s, s.viscosity) == ("implicit", 5.0, 0.0)
+    assert (s.viscosity_walls, s.solver.viscosity.max_iterations, s.solver.viscosity.error_pct) == (
+        "free-slip",
+        200,
+        5.0,
+    )
+    assert "read as" not in s.warnings[0]  # 7 exists only in the old numbers: nothing assumed
+
+
+def test_the_xsph_filter_is_imported_beside_a_viscosity_model(tmp_path):
+    """2.12.0 on: XSPH is a filter of its own (flat xsph, or its "XSPH" block since late 2025), which
+    applies on top of any viscosity model; its presence also dates the numbers (2 is Bender 2017)."""
+    data = {
+        "FluidBlocks": [BLOCK],
+        "Materials": [{"id": "Fluid", "viscosityMethod": 1, "viscosity": 0.01, "xsph": 0.05}],
+    }
+    s = load_scene(scene_file(tmp_path, data))
+    assert (s.viscosity_model, s.kinematic_viscosity_m2s, s.viscosity) == ("standard", 0.01, 0.05)
+    nested = {"id": "Fluid", "viscosityMethod": 0, "XSPH": {"xsph": 0.03, "xsphBoundary": 0.1}}
+    s = load_scene(scene_file(tmp_path, {"FluidBlocks": [BLOCK], "Materials": [nested]}, "b.json"))
+    assert (s.viscosity_model, s.viscosity) == ("xsph", 0.03)
+    assert "Materials[0].XSPH.xsphBoundary" in s.warnings[0]  # no XSPH at walls in ipsph: said, not dropped
+    data["Materials"][0] = {"id": "Fluid", "viscosityMethod": 2, "viscosity": 0.02, "xsph": 0.01}
+    s = load_scene(scene_file(tmp_path, data, "c.json"))
+    assert s.viscosity == 0.01 and "Bender and Koschier 2017 is not supported" in s.warnings[0]
+
+
+def test_only_the_chosen_models_block_is_read(tmp_path):
+    """Late-2025 layout: each model's keys in a block named after it; SPlisHSPlasH reads the block of
+    the model viscosityMethod picks, so another model's block is ignored (and said), never mixed in."""
+    mat = {
+        "id": "Fluid",
+        "viscosityMethod": 6,
+        "Standard viscosity": {"viscosity": 0.01},
+        "Weiler et al. 2018": {"viscosity": 2.0, "viscoMaxIter": 150},
+    }
+    s = load_scene(scene_file(tmp_path, {"FluidBlocks": [BLOCK], "Materials": [mat]}))
+    assert (s.viscosity_model, s.kinematic_viscosity_m2s, s.solver.viscosity.max_iterations) == ("implicit", 2.0, 150)
+    assert "Materials[0].Standard viscosity" in s.warnings[0] and "read as" not in s.warnings[0]

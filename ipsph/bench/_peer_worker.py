@@ -236,6 +236,14 @@ def run(scene: Path, method: str, end_time: float, work_dir: Path, params) -> di
         "particle_radius": sim.getParticleRadius(),
     }
     solver = {k: v for k, v in solver.items() if v is not None}
+    # what the peer smooths and damps with: its viscosity model (None, or the class) and XSPH filter
+    model = fluid.getViscosityBase()
+    xsph = fluid.getXSPH() if hasattr(fluid, "getXSPH") else None  # 2.12 on: a filter of its own
+    solver["viscosity_model"] = type(model).__name__ if model is not None else "None"
+    if model is not None:
+        solver["viscosity"] = _cfg("VISCOSITY_COEFFICIENT", obj=model)
+    if xsph is not None:
+        solver["xsph"] = _cfg("FLUID_COEFFICIENT", obj=xsph)
 
     # friendly names -> SPlisHSPlasH timer names (first one present wins)
     phase_alias = {

@@ -20,7 +20,7 @@ from pathlib import Path
 
 from ..config import TimeStepConfig
 from ..errors import ConfigError
-from ..params import spacing
+from ..params import default, spacing
 from ..scene import lattice_counts
 
 __all__ = [
@@ -151,6 +151,7 @@ def scaling_peer_scene(n_target: int, folder: Path, radius: float = 0.025) -> Pa
     points, faces = mesh_arrays(box_mesh((0.0, 0.0, 0.0), tank))
     meshio.write(mesh, meshio.Mesh(points, [("triangle", faces)]))
     dt_max = scaling_dt_max(radius)
+    zeta = default("simulation.viscosity")  # ours, which scaling_overrides leaves as it is
     scene = {
         "Configuration": {
             "particleRadius": radius,
@@ -173,9 +174,8 @@ def scaling_peer_scene(n_target: int, folder: Path, radius: float = 0.025) -> Pa
             {
                 "id": "Fluid",
                 "density0": 1000.0,
-                "viscosityMethod": 2,
-                "viscosity": 0.01,
-                "XSPH viscosity": {"viscosity": 0.01},
+                "viscosityMethod": 0,  # no viscosity model: XSPH is a filter of its own since 2.12
+                "XSPH": {"xsph": zeta},  # (the peer, 2.19, reads a model's keys from its named block)
             }
         ],
         "RigidBodies": [{"geometryFile": str(mesh.resolve()), "isDynamic": False, "isWall": True}],

@@ -8,6 +8,7 @@ from pathlib import Path
 from ...errors import ConfigError, read_text
 from .bodies import BodyReader
 from .reader import Reader
+from .viscosity import ViscosityReader
 
 __all__ = ["scene_dict", "DEFAULT_END_TIME"]
 
@@ -26,22 +27,6 @@ DEFAULT_END_TIME = 2.0  # s, when the scene has no positive stopAt (ipsph's own 
 
 _METHODS = {0: "WCSPH", 1: "PCISPH", 2: "PBF", 3: "IISPH", 4: "DFSPH", 5: "Projective Fluids"}
 _SUPPORTED_METHODS = {4: "dfsph", 5: "pf"}
-_VISCOSITY_METHODS = {
-    0: "None",
-    1: "Standard",
-    2: "XSPH",
-    3: "Bender and Koschier 2017",
-    4: "Peer et al. 2015",
-    5: "Peer et al. 2016",
-    6: "Takahashi et al. 2015",
-    7: "Weiler et al. 2018",
-}
-WEILER_2018 = 7  # _VISCOSITY_METHODS' number of "Weiler et al. 2018" (SPlisHSPlasH 2.x scenes number it 6)
-_PHYSICAL = {1: "standard", WEILER_2018: "implicit"}  # viscosityMethod -> simulation.viscosity_model (else XSPH)
-# a material's viscosity block named after its model: the name decides (the numbers moved between versions)
-_VISCOSITY_BLOCKS = {"Standard viscosity": 1, "XSPH viscosity": 2, "Weiler et al. 2018": WEILER_2018}
-
-
 # SPlisHSPlasH 2.0.0's solver settings, flat in Configuration (later versions: per-method blocks)
 _FLAT_SOLVER_KEYS = (
     "minIterations",
@@ -71,12 +56,7 @@ def scene_dict(path: Path, where: str | None = None) -> tuple[dict, tuple[str, .
     return _Importer(where, raw).run()
 
 
-class _Importer(Reader, BodyReader):
-    def __init__(self, where: str, raw: dict):
-        super().__init__(where, raw)
-        self.viscous_solver: dict = {}  # [solver.viscosity] from a Weiler 2018 block
-        self.viscous_walls: str | None = None  # simulation.viscosity_walls from its viscosityBoundary
-
+class _Importer(Reader, BodyReader, ViscosityReader):
     def run(self) -> tuple[dict, tuple[str, ...]]:
         out: dict = {"simulation": {}, "time_step": {}, "solver": {}, "output": {}}
         for key in self.raw:
@@ -253,124 +233,6 @@ class _Importer(Reader, BodyReader):
                 continue
             group, name, conv = keys[key]
             solver.setdefault(group, {})[name] = conv(value, f"{label}.{key}")
-
-    def materials(self, config: dict, out: dict) -> None:
-        sim = out["simulation"]
-        mats = self.list_of_objects("Materials")
-        found: list[tuple[int | None, float | None, float | None, int | None]] = []
-        # 2.0.0 layout: material values flat in Configuration
-        if any(k in config for k in ("density0", "viscosity", "viscosityMethod")):
-            found.append(self.material(config, "Configuration", None, inline=True))
-        for i, mat in enumerate(mats):
-            found.append(self.material(mat, "Materials", i))
-        if not found:
-            self.notes.append("no viscosity given: XSPH zeta stays at ipsph's default")
-            return
-        densities = {d for _, d, _, _ in found if d is not None}
-        viscosities = {v for _, _, v, _ in found if v is not None}
-        if len(densities) > 1 or len(viscosities) > 1:
-            raise self.fail(
-                "Materials", "several fluids with different density0 or viscosity (multiphase) are not supported"
-            )
-        if densities:
-            sim["density0"] = densities.pop()
-        models = {_PHYSICAL.get(m, "xsph") for _, _, v, m in found if v is not None}
-        if len(models) > 1:
-            raise self.fail("Materials", "fluids with different viscosity methods are not supported")
-        if viscosities:
-            model = models.pop()
-            if model != "xsph":  # Standard or Weiler 2018: nu in m^2/s, the same operator, no XSPH on top
-                sim["viscosity_model"] = model
-                sim["kinematic_viscosity_m2s"] = viscosities.pop()
-                sim["viscosity"] = 0.0
-                if self.viscous_solver:
-                    out.setdefault("solver", {})["viscosity"] = self.viscous_solver
-                if self.viscous_walls is not None:
-                    sim["viscosity_walls"] = self.viscous_walls
-            else:
-                sim["viscosity"] = viscosities.pop()
-        else:
-            self.notes.append("no viscosity given: XSPH zeta stays at ipsph's default")
-
-    def material(self, mat: dict, section: str, index: int | None, inline: bool = False):
-        label = section if index is None else f"{section}[{index}]"
-        density = None
-        if "density0" in mat:
-            density = self.num(mat["density0"], f"{label}.density0")
-        vmethod = None
-        if "viscosityMethod" in mat:
-            vmethod = self.int_(mat["viscosityMethod"], f"{label}.viscosityMethod")
-        visc = None
-        if "viscosity" in mat:
-            visc = self.num(mat["viscosity"], f"{label}.viscosity")
-        for key, value in mat.items():
-            if key in ("id", "density0", "viscosity", "viscosityMethod") or inline:
-                continue
-            from .emitters import MATERIAL_KEYS
-
-            if key in MATERIAL_KEYS:  # the emitter box: [domain] (emitters.domain)
-                continue
-            named = isinstance(value, dict) and (key in _VISCOSITY_BLOCKS or "viscosity" in key.lower())
-            if named and "viscosity" in value:
-                visc = self.num(value["viscosity"], f"{label}.{key}.viscosity")
-                if _VISCOSITY_BLOCKS.get(key) == WEILER_2018:
-                    vmethod = WEILER_2018  # SPlisHSPlasH 2.x numbers it 6, older versions 7
-                    self.weiler_block(value, f"{label}.{key}", section, key, index)
-                    continue
-                for sub in value:
-                    if sub != "viscosity":
-                        self.ignore(f"{section}.{key}", sub, index=index)
-                continue
-            self.ignore(section, key, value, index=index)
-        if vmethod is not None and vmethod != 2:
-            vname = _VISCOSITY_METHODS.get(vmethod, "unknown")
-            if vmethod == 0:
-                visc = 0.0
-                self.notes.append(f"{label}.viscosityMethod=0 (None): XSPH viscosity zeta = 0")
-            elif vmethod == 1:
-                if visc is not None:
-                    self.notes.append(
-                        f"{label}.viscosityMethod=1 (Standard): simulation.viscosity_model = standard, "
-                        f"kinematic_viscosity_m2s = {visc:g}, XSPH off"
-                    )
-            elif vmethod == WEILER_2018:
-                if visc is not None:
-                    self.notes.append(
-                        f"{label}: Weiler et al. 2018: simulation.viscosity_model = implicit, "
-                        f"kinematic_viscosity_m2s = {visc:g}, XSPH off (the same operator and backward-Euler "
-                        "solve; ours uses Jacobi-preconditioned CG, the fluid's nu at no-slip walls, and "
-                        "its own wall particles: docs/method.md section 10)"
-                    )
-            elif visc is not None:
-                self.notes.append(
-                    f"{label}.viscosityMethod={vmethod} ({vname}) is not XSPH: "
-                    f"its viscosity {visc:g} is used as the XSPH coefficient zeta"
-                )
-        elif vmethod is None and visc is not None:
-            self.notes.append(f"{label}: no viscosityMethod; viscosity {visc:g} is used as the XSPH coefficient zeta")
-        return index, density, visc, vmethod
-
-    def weiler_block(self, b: dict, label: str, section: str, key: str, index: int | None) -> None:
-        """The "Weiler et al. 2018" block's solver settings -> [solver.viscosity], its wall
-        coefficient -> simulation.viscosity_walls (no-slip with the fluid's nu, or free-slip at 0)."""
-        for sub, value in b.items():
-            if sub == "viscosity":
-                continue
-            if sub == "viscoMaxIter":
-                self.viscous_solver["max_iterations"] = self.int_(value, f"{label}.{sub}")
-            elif sub == "viscoMaxError":  # a relative residual: 0.01 is 1 %
-                self.viscous_solver["error_pct"] = 100.0 * self.num(value, f"{label}.{sub}")
-            elif sub == "viscosityBoundary":
-                nu_b = self.num(value, f"{label}.{sub}")
-                self.viscous_walls = "no-slip" if nu_b > 0.0 else "free-slip"
-                fluid = b.get("viscosity")
-                if nu_b > 0.0 and nu_b != fluid:
-                    self.notes.append(
-                        f"{label}.viscosityBoundary = {nu_b:g}: walls are no-slip with the fluid's nu "
-                        f"({fluid:g}); ipsph has no separate wall viscosity"
-                    )
-            else:
-                self.ignore(f"{section}.{key}", sub, index=index)
 
     def warning(self) -> tuple[str, ...]:
         parts = []
