@@ -12,6 +12,7 @@ Closed forms used:
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -58,6 +59,12 @@ DENSITY_TOL = 0.05e-2
 # r = 0.005 to 0.0033). These bounds hold what is true today.
 TAYLOR_COUETTE_TOL = 0.45  # against R1, R2
 TAYLOR_COUETTE_SHIFTED_TOL = 0.25  # against R1 - 0.5 d, R2 (where the completion puts the no-slip)
+# A thick planar slump from a SPlisHSPlasH 2.12-2.15 scene (issue 42): the front against Huppert's
+# (1982) similarity solution x_N = 1.411 (g A^3 t / (3 nu))^(1/5), A the half-area per unit width,
+# valid once the front is well past the block's half-length (1.8 x at 1.5 s). Measured at r = 5 mm,
+# nu = 1 m^2/s: -9 %, -2 %, +4 % at 1, 1.5 and 2 s; the scene read with the old numbers (an XSPH
+# filter of strength 1) reaches the channel's end, +220 % at 1.5 s.
+SLUMP_FRONT_TOL = 0.10
 
 
 def _cylinder_obj(path, radius, y0, y1, n=96):
@@ -304,3 +311,33 @@ def test_the_old_standard_viscosity_key_names_its_replacement(tmp_path, capsys):
     s = scene_file(tmp_path, "[simulation]\nparticle_radius = 0.04\nstandard_viscosity = 0.5\n")
     line = assert_refused(capsys, tmp_path / "out", s)
     assert "simulation.standard_viscosity was replaced" in line and "kinematic_viscosity_m2s" in line, line
+
+
+@pytest.mark.slow
+def test_a_thick_slump_imported_from_splishsplash_2_12_follows_huppert(tmp_path):
+    """viscosityMethod 6 with flat keys is Weiler 2018 in SPlisHSPlasH 2.12-2.15 (ipsph's importer
+    read it as an XSPH filter until issue 42): a 0.2 x 0.2 m block of nu = 1 m^2/s centred in a
+    channel 0.1 m wide and 1.2 m long spreads on its no-slip floor at Huppert's rate."""
+    import json
+
+    from ipsph.scene import load_scene
+
+    nu, half_area, t_end = 1.0, 0.1 * 0.2, 1.5
+    material = {"viscosityMethod": 6, "viscosity": nu, "viscosityBoundary": nu, "viscoMaxError": 0.01}
+    unit_box = Path(__file__).resolve().parents[1] / "meshes" / "UnitBox.obj"
+    scene = {
+        "Configuration": {"particleRadius": 0.005, "stopAt": t_end},
+        "Materials": [{"id": "Fluid", "density0": 1000, **material}],
+        "RigidBodies": [
+            {"geometryFile": str(unit_box), "translation": [0, 0.3, 0.05], "scale": [1.2, 0.6, 0.1], "isWall": True}
+        ],
+        "FluidBlocks": [{"start": [-0.1, 0.0, 0.0], "end": [0.1, 0.2, 0.1]}],
+    }
+    path = tmp_path / "slump.json"
+    path.write_text(json.dumps(scene))
+    sim = Simulation.from_scene(load_scene(path, ["simulation.method=ipsph"]))
+    assert sim.scene.viscosity_model == "implicit"
+    sim.run(end_time=t_end, fps=10)
+    front = np.percentile(np.abs(sim.positions[:, 0]), 99.5)  # the two fronts, past a stray particle
+    huppert = 1.411 * (9.81 * half_area**3 * t_end / (3 * nu)) ** 0.2
+    assert abs(front / huppert - 1) < SLUMP_FRONT_TOL, front / huppert
