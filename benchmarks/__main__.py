@@ -6,6 +6,7 @@ python -m benchmarks render-sizes 100000 1000000
 python -m benchmarks render-overhead --repeats 5
 python -m benchmarks surface-sizes 1000000 --repeats 3
 python -m benchmarks surface-overhead --repeats 5
+python -m benchmarks gauge-overhead --repeats 5
 python -m benchmarks sweep
 python -m benchmarks moving-walls --repeats 5
 python -m benchmarks baseline ../base --methods ipsph --end-time 0.3
@@ -30,6 +31,7 @@ STUDIES = (
     "render-overhead",
     "surface-sizes",
     "surface-overhead",
+    "gauge-overhead",
     "sweep",
     "moving-walls",
     "baseline",
@@ -111,6 +113,13 @@ def run(args) -> int:
         s = surface_overhead(args.repeats, args.threads, args.max_load, timeout=min(args.timeout, 900.0), log=log)
         out["surface_overhead"] = s
         texts.append(title("Surface overhead (default scene)") + overhead_table(s, args.markdown))
+        failed |= not s["ok"]
+    elif args.study == "gauge-overhead":  # the default scene's run without and with ten every-step gauges
+        from .gauge_cost import gauge_overhead, overhead_table
+
+        s = gauge_overhead(args.repeats, args.threads, args.max_load, timeout=min(args.timeout, 900.0), log=log)
+        out["gauge_overhead"] = s
+        texts.append(title("Gauge overhead (default scene)") + overhead_table(s, args.markdown))
         failed |= not s["ok"]
     elif args.study == "baseline":
         from .baseline import bench_baseline
