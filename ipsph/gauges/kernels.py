@@ -20,7 +20,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from ..backends.kernels import grad_w_factor, w
 
@@ -227,8 +227,9 @@ def wall_force(x, rho, p, m, idx, xw, mw, centre, h, out):
         f_b = sum_i m_i (p_i / rho_i^2) m_b grad W(x_i - x_b),   F = sum_b f_b,   T = sum_b (x_b - c) x f_b
 
     the reaction of the pressure term the walls exert on the fluid [AIA*12] (rigid.wall_forces
-    with the pressure p = k rho^2 each method writes). idx: the fluid candidates; the wall particles
-    are summed in the order given, each over its fluid neighbours cell by cell."""
+    with the pressure p = k rho^2 each method writes). idx: the fluid candidates; each f_b sums its
+    fluid neighbours cell by cell (the wall particles in parallel), then F and T sum the f_b in the
+    order given, so the value does not depend on the thread count."""
     nc = idx.shape[0]
     xs = np.empty((nc, 3))
     coeff = np.empty(nc)
@@ -239,8 +240,25 @@ def wall_force(x, rho, p, m, idx, xw, mw, centre, h, out):
         coeff[k] = _q(m[j]) * _q(p[j]) / (rj * rj)
     cell = GRID_CELL_H * h
     origin, dims, order, start = _grid(xs, cell)
+    fw = np.empty((xw.shape[0], 3))
+    _wall_particle_forces(xs, coeff, origin, dims, order, start, cell, xw, mw, h, fw)
     out[:] = 0.0
     for b in range(xw.shape[0]):
+        f0, f1, f2 = fw[b, 0], fw[b, 1], fw[b, 2]
+        e0, e1, e2 = xw[b, 0] - centre[0], xw[b, 1] - centre[1], xw[b, 2] - centre[2]
+        out[0] += f0
+        out[1] += f1
+        out[2] += f2
+        out[3] += e1 * f2 - e2 * f1
+        out[4] += e2 * f0 - e0 * f2
+        out[5] += e0 * f1 - e1 * f0
+
+
+@njit(parallel=True, cache=True)
+def _wall_particle_forces(xs, coeff, origin, dims, order, start, cell, xw, mw, h, fw):
+    """fw[b] = f_b of `wall_force` for every wall particle b, each a sum in cell order."""
+    hh = h * h
+    for b in prange(xw.shape[0]):
         f0 = f1 = f2 = 0.0
         lo0, lo1, lo2, hi0, hi1, hi2 = cell_range(xw[b], origin, dims, cell, h)
         for c2 in range(lo2, hi2 + 1):
@@ -250,17 +268,12 @@ def wall_force(x, rho, p, m, idx, xw, mw, centre, h, out):
                     for t in range(start[c], start[c + 1]):
                         i = order[t]
                         d0, d1, d2 = xs[i, 0] - xw[b, 0], xs[i, 1] - xw[b, 1], xs[i, 2] - xw[b, 2]
-                        r = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-                        if r < h:
-                            g = coeff[i] * grad_w_factor(r, h)
-                            f0 += g * d0
-                            f1 += g * d1
-                            f2 += g * d2
-        f0, f1, f2 = mw[b] * f0, mw[b] * f1, mw[b] * f2
-        e0, e1, e2 = xw[b, 0] - centre[0], xw[b, 1] - centre[1], xw[b, 2] - centre[2]
-        out[0] += f0
-        out[1] += f1
-        out[2] += f2
-        out[3] += e1 * f2 - e2 * f1
-        out[4] += e2 * f0 - e0 * f2
-        out[5] += e0 * f1 - e1 * f0
+                        rr = d0 * d0 + d1 * d1 + d2 * d2
+                        if rr < hh:  # most candidates of a cell scan lie beyond H: no root for them
+                            r = math.sqrt(rr)
+                            if r < h:
+                                g = coeff[i] * grad_w_factor(r, h)
+                                f0 += g * d0
+                                f1 += g * d1
+                                f2 += g * d2
+        fw[b, 0], fw[b, 1], fw[b, 2] = mw[b] * f0, mw[b] * f1, mw[b] * f2

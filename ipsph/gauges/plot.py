@@ -37,9 +37,10 @@ def plot_gauges(csv_path, png_path, *, under=None, dpi: int = 110, title: str | 
     t = data[headers[0]]
     panels = _panels(headers)
     n = max(len(panels), 1)
-    fig, axes = plt.subplots(
-        n, 1, figsize=(9, min(2.2 * n + 0.8, 24)), sharex=True, constrained_layout=True, squeeze=False
-    )
+    height = min(2.2 * n + 0.8, 24)
+    fig, axes = plt.subplots(n, 1, figsize=(9, height), sharex=True, squeeze=False)
+    # fixed margins in inches (constrained_layout took 1/3 of the plot's time on 19 panels)
+    fig.subplots_adjust(left=1.2 / 9, right=1 - 0.15 / 9, top=1 - 0.35 / height, bottom=0.5 / height, hspace=0.12)
     for ax, ((gauge, unit), cols) in zip(axes[:, 0], panels.items()):
         for h in cols:
             y = data[h]
@@ -51,7 +52,7 @@ def plot_gauges(csv_path, png_path, *, under=None, dpi: int = 110, title: str | 
                 ax.plot(tb[fine], yb[fine], lw=0.7, color="0.6", label=f"{label}, every step", zorder=1)
                 label += ", at the frames"
             ax.plot(t[ok], y[ok], lw=1.0, marker="." if ok.sum() < 60 or below else None, ms=4, label=label)
-        ax.set_ylabel(f"{gauge} [{unit}]" if unit else gauge)
+        ax.set_ylabel(f"{gauge} [{unit}]" if unit else gauge, fontsize=8)
         ax.grid(True, alpha=0.3)
         if len(cols) > 1 or below:
             ax.legend(fontsize=7, loc="upper right", ncols=min(len(cols), 3))

@@ -156,6 +156,7 @@ class Gauges:
             if g.kind == "flow"
         }
         self._forces = [k for k, g in enumerate(self.specs) if g.kind == "force"]
+        self._wall_boxes: dict[int, tuple] = {}  # force gauge -> (its wall's positions, their bounding box)
 
     @property
     def headers(self) -> list[str]:
@@ -189,7 +190,10 @@ class Gauges:
                 force_walls[k] = (xw, mw)
                 reach = (2.0 if self.viscous else 1.0) * self.h  # the viscous part: i's own neighbours too
                 if len(xw):
-                    boxes[k, :3], boxes[k, 3:] = xw.min(axis=0) - reach, xw.max(axis=0) + reach
+                    seen = self._wall_boxes.get(k)
+                    if seen is None or seen[0] is not xw:  # a static wall's arrays come back the same
+                        seen = self._wall_boxes[k] = (xw, np.concatenate([xw.min(axis=0), xw.max(axis=0)]))
+                    boxes[k, :3], boxes[k, 3:] = seen[1][:3] - reach, seen[1][3:] + reach
         start, idx = K.select(x, boxes)
         out: list[float | None] = [None] * len(self.columns)
         if len(self._points):

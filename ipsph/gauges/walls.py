@@ -55,6 +55,7 @@ class RunWalls:
         self.x0, self.start = canonical_walls(scene)
         self._key = None
         self._where = None
+        self._static: dict[int, tuple] = {}  # wall -> (the placements it was gathered from, (x, m))
 
     def _placements(self):
         b = self.boundary
@@ -72,10 +73,18 @@ class RunWalls:
         return self._where[self.start[k] : self.start[k + 1]]
 
     def arrays(self, name: str, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """(positions, masses) of the wall `name` now, canonical order."""
-        rows = self.rows(wall_index(self.scene, name))
-        b = self.boundary
-        return np.ascontiguousarray(b.x[rows]), np.ascontiguousarray(b.m[rows])
+        """(positions, masses) of the wall `name` now, canonical order; a static wall's are gathered
+        once (and again only when the search re-sorts the walls), the same objects every sample."""
+        k = wall_index(self.scene, name)
+        rows = self.rows(k)
+        spec, b = self.scene.boundaries[k], self.boundary
+        static = not (spec.moving or spec.dynamic)
+        if static and k in self._static and self._static[k][0] is self._key:
+            return self._static[k][1]
+        got = np.ascontiguousarray(b.x[rows]), np.ascontiguousarray(b.m[rows])
+        if static:
+            self._static[k] = (self._key, got)
+        return got
 
     def velocities(self, name: str, t: float) -> np.ndarray:
         return np.ascontiguousarray(self.boundary.v[self.rows(wall_index(self.scene, name))])
