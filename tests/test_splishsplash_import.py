@@ -350,3 +350,30 @@ def test_only_the_chosen_models_block_is_read(tmp_path):
     s = load_scene(scene_file(tmp_path, {"FluidBlocks": [BLOCK], "Materials": [mat]}))
     assert (s.viscosity_model, s.kinematic_viscosity_m2s, s.solver.viscosity.max_iterations) == ("implicit", 2.0, 150)
     assert "Materials[0].Standard viscosity" in s.warnings[0] and "read as" not in s.warnings[0]
+
+
+def test_takahashi_2015_is_a_kinematic_viscosity(tmp_path):
+    """Takahashi 2015's viscosity is a kinematic nu (its stress is rho0 nu (grad v + grad v^T)): the
+    implicit model with its solver settings and free-slip walls (its operator has no wall term), not
+    an XSPH filter of strength nu. Bender 2017 and Peer 2015/2016 scale the velocity gradient by a
+    dimensionless factor: those keep the XSPH fallback."""
+    mat = {
+        "id": "Fluid",
+        "viscosityMethod": 5,
+        "viscosity": 0.5,
+        "viscoMaxIter": 80,
+        "viscoMaxError": 0.02,
+        "xsph": 0.0,
+    }
+    s = load_scene(scene_file(tmp_path, {"FluidBlocks": [BLOCK], "Materials": [mat]}))
+    assert (s.viscosity_model, s.kinematic_viscosity_m2s, s.viscosity, s.viscosity_walls) == (
+        "implicit",
+        0.5,
+        0.0,
+        "free-slip",
+    )
+    assert (s.solver.viscosity.max_iterations, s.solver.viscosity.error_pct) == (80, 2.0)
+    assert "Takahashi et al. 2015 (improved): simulation.viscosity_model = implicit" in s.warnings[0]
+    mat = {"id": "Fluid", "viscosityMethod": 3, "viscosity": 0.5, "xsph": 0.0}  # 2.12 numbers: Peer 2015
+    s = load_scene(scene_file(tmp_path, {"FluidBlocks": [BLOCK], "Materials": [mat]}, "b.json"))
+    assert (s.viscosity_model, s.kinematic_viscosity_m2s) == ("xsph", 0.0)

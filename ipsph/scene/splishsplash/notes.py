@@ -22,7 +22,7 @@ validated as a TOML scene, so override keys are ipsph's (`--set simulation.metho
 | `Projective Fluids`: `minIterations`, `maxIterations`, `maxError` (%) | `solver.ipsph.min_passes`, `max_passes`, `density_error_pct` (used when you switch the method to ipsph; plain PF runs `solver.pf.passes` = 3 fixed passes, as SPlisHSPlasH does) |
 | 2.0.0 flat `maxIterations`, `maxError`, ... | as the block of the scene's method; `stiffness` -> `solver.pf.stiffness` |
 | `Materials[].density0` | `simulation.density0` |
-| `Materials[].viscosityMethod`: the model, by the numbers of the scene's release (below) | 0 None: no viscosity; 1 Standard, with its `viscosity`: `simulation.viscosity_model` = standard, `kinematic_viscosity_m2s` = nu (the same model); Weiler et al. 2018: implicit (next row); 2.0-2.11's 2 XSPH: `simulation.viscosity` (zeta) = its `viscosity`; any other model: its `viscosity` as zeta (noted) |
+| `Materials[].viscosityMethod`: the model, by the numbers of the scene's release (below) | 0 None: no viscosity; 1 Standard, with its `viscosity`: `simulation.viscosity_model` = standard, `kinematic_viscosity_m2s` = nu (the same model); Weiler et al. 2018: implicit (next row); Takahashi et al. 2015 (its `viscosity` a kinematic nu too): implicit with free-slip walls (its operator has no wall term) and its `viscoMaxIter`, `viscoMaxError`; 2.0-2.11's 2 XSPH: `simulation.viscosity` (zeta) = its `viscosity`; Bender and Koschier 2017, Peer et al. 2015 and 2016 (a dimensionless factor on the velocity gradient): its `viscosity` as zeta (noted) |
 | Weiler et al. 2018's `viscosity`, `viscosityBoundary`, `viscoMaxIter`, `viscoMaxError` (a fraction), flat in the material or in its `"Weiler et al. 2018"` block | `simulation.viscosity_model` = implicit, `kinematic_viscosity_m2s` = nu; `viscosity_walls` = no-slip if `viscosityBoundary` > 0 (with the fluid's nu: noted when it differs), else free-slip; `solver.viscosity.max_iterations`, `error_pct` = 100 x `viscoMaxError`; docs/method.md section 10 says where the models differ |
 | `Materials[].xsph` (2.12-2.15) or `Materials[].XSPH.xsph` (since late 2025) | `simulation.viscosity` (XSPH zeta), beside any viscosity model; 0 when the scene gives none with a physical model (`xsphBoundary` is warned about) |
 
@@ -37,7 +37,7 @@ SPlisHSPlasH's `viscosityMethod` numbers moved in 2.12.0, when XSPH left the lis
 The importer reads the numbers of the layout it finds: `Configuration` (2.0.0) and a flat 7 with
 the old numbers; blocks or `xsph` keys with the new. A flat 2-6 alone could be either and is read
 with the new numbers (every release since 2022), with a note saying what the old ones meant (6 was
-Takahashi 2015, today's Weiler 2018). With blocks, only the chosen model's block is read, as
+Takahashi 2015, today's Weiler 2018; both run as the implicit model). With blocks, only the chosen model's block is read, as
 SPlisHSPlasH does; a lone block whose model `viscosityMethod` does not name decides (noted).
 
 | `dataExportFPS` | `output.fps` |
@@ -59,7 +59,7 @@ Warned about, in one message (`Scene.warnings`): every other key, e.g.
 `boundaryHandlingMethod` (every value maps to `simulation.boundary_model = "akinci-volume"`: Akinci
 particles placed so that the fluid's volume meets the surface, what its volume and density maps aim at),
 `numberOfStepsPerRenderUpdate`, `mapResolution`, `color`, `surfaceTension`, and a
-`viscosityMethod` other than None, XSPH, Standard or Weiler 2018: its `viscosity` value is then used as the
+`viscosityMethod` of Bender 2017 or Peer 2015/2016: its `viscosity` value is then used as the
 XSPH coefficient, or dropped when the scene gives `xsph` too. The Standard model's wall friction
 (`viscosityBoundary`, default 0) is not imported (warned if set). Where a key is absent,
 SPlisHSPlasH's own default is used (listed in the table), except `end_time`, which defaults to

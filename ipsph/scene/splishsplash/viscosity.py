@@ -31,12 +31,19 @@ _UP_TO_2_11 = (
 )
 _FROM_2_12 = tuple(m for m in _UP_TO_2_11 if m != "XSPH")
 WEILER = "Weiler et al. 2018"
-_PHYSICAL = {"Standard": "standard", WEILER: "implicit"}  # model -> simulation.viscosity_model (else XSPH)
+TAKAHASHI = "Takahashi et al. 2015 (improved)"  # a kinematic nu too (stress rho0 nu (grad v + grad v^T))
+# model -> simulation.viscosity_model; the others (Bender 2017, Peer 2015/2016) scale the velocity
+# gradient by a dimensionless factor and fall back to XSPH with it
+_PHYSICAL = {"Standard": "standard", WEILER: "implicit", TAKAHASHI: "implicit"}
 # a model's block, by the name SPlisHSPlasH gives it (METHOD_NAME), -> the model
 _BLOCKS = {"Standard viscosity": "Standard"} | {m: m for m in _FROM_2_12[2:]}
 XSPH_BLOCK = "XSPH"  # the XSPH filter's block: xsph, xsphBoundary
 _XSPH_KEYS = ("xsph", "xsphBoundary")
-_WEILER_KEYS = ("viscosityBoundary", "viscoMaxIter", "viscoMaxError")  # Weiler 2018's settings
+_WEILER_KEYS = (
+    "viscosityBoundary",
+    "viscoMaxIter",
+    "viscoMaxError",
+)  # Weiler 2018's settings (Takahashi: the last two)
 
 
 class ViscosityReader:
@@ -120,8 +127,8 @@ class ViscosityReader:
         visc = self.num(settings["viscosity"], f"{where}.viscosity") if "viscosity" in settings else None
         if block_key and "viscosity" in mat:
             self.ignore(section, "viscosity", index=index)  # flat beside the blocks: SPlisHSPlasH reads the block
-        if model == WEILER:
-            self.weiler_settings(settings, where, section, prefix, index)
+        if model in (WEILER, TAKAHASHI):
+            self.implicit_settings(settings, model, where, section, prefix, index)
         else:
             for key in settings:
                 if key != "viscosity":
@@ -149,6 +156,12 @@ class ViscosityReader:
                         "solve; ours uses Jacobi-preconditioned CG, the fluid's nu at no-slip walls, and "
                         "its own wall particles: docs/method.md section 10)"
                     )
+                elif model == TAKAHASHI:
+                    self.notes.append(
+                        f"{label}: Takahashi et al. 2015 (improved): simulation.viscosity_model = implicit, "
+                        f"kinematic_viscosity_m2s = {visc:g}, {xsph}, free-slip walls (its nu; ipsph solves "
+                        "Weiler et al. 2018's operator backward-Euler, not Takahashi's: docs/method.md section 10)"
+                    )
                 else:
                     self.notes.append(
                         f"{label}.viscosityMethod=1 (Standard): simulation.viscosity_model = standard, "
@@ -167,9 +180,12 @@ class ViscosityReader:
             self.notes.append(f"{label}: {what}: its viscosity {visc:g} is used as the XSPH coefficient zeta")
         return "xsph", None, visc
 
-    def weiler_settings(self, b: dict, label: str, section: str, prefix: str, index: int | None) -> None:
-        """Weiler 2018's solver settings -> [solver.viscosity], its wall coefficient ->
-        simulation.viscosity_walls (no-slip with the fluid's nu, or free-slip at 0)."""
+    def implicit_settings(self, b: dict, model: str, label: str, section: str, prefix: str, index) -> None:
+        """Weiler 2018's or Takahashi 2015's solver settings -> [solver.viscosity]; Weiler's wall
+        coefficient -> simulation.viscosity_walls (no-slip with the fluid's nu, or free-slip at 0);
+        Takahashi's operator has no wall term: free-slip."""
+        if model == TAKAHASHI:
+            self.viscous_walls = "free-slip"
         for sub, value in b.items():
             if sub == "viscosity":
                 continue
@@ -177,7 +193,7 @@ class ViscosityReader:
                 self.viscous_solver["max_iterations"] = self.int_(value, f"{label}.{sub}")
             elif sub == "viscoMaxError":  # a relative residual: 0.01 is 1 %
                 self.viscous_solver["error_pct"] = 100.0 * self.num(value, f"{label}.{sub}")
-            elif sub == "viscosityBoundary":
+            elif sub == "viscosityBoundary" and model == WEILER:
                 nu_b = self.num(value, f"{label}.{sub}")
                 self.viscous_walls = "no-slip" if nu_b > 0.0 else "free-slip"
                 fluid = b.get("viscosity")
