@@ -1,6 +1,8 @@
 """Shared test fixtures."""
 
 import os
+import subprocess
+import sys
 
 import pytest
 
@@ -30,3 +32,29 @@ def _restore_numba_threads():
     n = numba.get_num_threads()
     yield
     numba.set_num_threads(n)
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _compile_kernels_on_the_other_core():
+    """A fresh clone (CI) starts with an empty Numba cache, and most of the suite's time is compiling:
+    compile the three methods' kernels (ipsph/run/jit_signatures.json, as `ipsph run`'s helper does)
+    in a background process at a lower priority while the first tests run, so that later tests load
+    them. A test that needs a kernel first compiles it itself; the cache's writes are atomic."""
+    from ipsph.run import jit_warm
+
+    if os.environ.get("IPSPH_NO_JIT_HELPER"):
+        yield
+        return
+    code = (
+        "import os; os.nice(10); from ipsph.run import jit_warm; "
+        "[jit_warm.compile_backwards(m) for m in jit_warm.METHODS if jit_warm.missing_from_cache(m)]"
+    )
+    proc = subprocess.Popen(
+        [sys.executable, "-c", code],
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
+    )
+    yield
+    jit_warm.stop(proc)
