@@ -244,14 +244,19 @@ def wall_force(x, rho, p, m, idx, xw, mw, centre, h, out):
     _wall_particle_forces(xs, coeff, origin, dims, order, start, cell, xw, mw, h, fw)
     out[:] = 0.0
     for b in range(xw.shape[0]):
-        f0, f1, f2 = fw[b, 0], fw[b, 1], fw[b, 2]
-        e0, e1, e2 = xw[b, 0] - centre[0], xw[b, 1] - centre[1], xw[b, 2] - centre[2]
-        out[0] += f0
-        out[1] += f1
-        out[2] += f2
-        out[3] += e1 * f2 - e2 * f1
-        out[4] += e2 * f0 - e0 * f2
-        out[5] += e0 * f1 - e1 * f0
+        add_force_torque(out, xw[b], centre, fw[b, 0], fw[b, 1], fw[b, 2])
+
+
+@njit(inline="always")
+def add_force_torque(out, at, centre, f0, f1, f2):
+    """out (Fx, Fy, Fz, Tx, Ty, Tz) += the force f acting at `at` and its torque about `centre`."""
+    e0, e1, e2 = at[0] - centre[0], at[1] - centre[1], at[2] - centre[2]
+    out[0] += f0
+    out[1] += f1
+    out[2] += f2
+    out[3] += e1 * f2 - e2 * f1
+    out[4] += e2 * f0 - e0 * f2
+    out[5] += e0 * f1 - e1 * f0
 
 
 @njit(parallel=True, cache=True)

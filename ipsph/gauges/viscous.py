@@ -23,7 +23,7 @@ from numba import njit
 
 from ..backends.kernels import grad_w_factor
 from ..backends.viscous_bodies import _smallest_eigenvalue, eps_of
-from .kernels import GRID_CELL_H, _grid, _q, cell_range
+from .kernels import GRID_CELL_H, _grid, _q, add_force_torque, cell_range
 
 
 @njit(cache=True)
@@ -124,10 +124,4 @@ def wall_viscous_force(x, v, rho, m, idx, xw, mw, vw, xa, ma, h, nu, full, rho0,
                         f0 += s * (mi[0] * u0 + mi[3] * u1 + mi[4] * u2)
                         f1 += s * (mi[3] * u0 + mi[1] * u1 + mi[5] * u2)
                         f2 += s * (mi[4] * u0 + mi[5] * u1 + mi[2] * u2)
-        e0, e1, e2 = xw[b, 0] - centre[0], xw[b, 1] - centre[1], xw[b, 2] - centre[2]
-        out[0] += f0
-        out[1] += f1
-        out[2] += f2
-        out[3] += e1 * f2 - e2 * f1
-        out[4] += e2 * f0 - e0 * f2
-        out[5] += e0 * f1 - e1 * f0
+        add_force_torque(out, xw[b], centre, f0, f1, f2)
