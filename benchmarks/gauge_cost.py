@@ -14,62 +14,27 @@ TARGET = 0.03  # issue 42: ten gauges sampled after every step may slow the defa
 
 # four point gauges (in the column, at the floor ahead of it, at the far wall), three level gauges,
 # two flow rectangles across the tank and the tank's force: every kind, each sampled after every step
-TEN_GAUGES = """
-[[gauge]]
-name = "column_low"
-kind = "point"
-position = [0.3, 0.1, 0.3]
-
-[[gauge]]
-name = "column_mid"
-kind = "point"
-position = [0.3, 0.4, 0.3]
-
-[[gauge]]
-name = "floor"
-kind = "point"
-position = [1.0, 0.05, 0.3]
-
-[[gauge]]
-name = "far_wall"
-kind = "point"
-position = [1.5, 0.1, 0.3]
-
-[[gauge]]
-name = "level_column"
-kind = "level"
-position = [0.3, 0.0, 0.3]
-top = 1.2
-
-[[gauge]]
-name = "level_middle"
-kind = "level"
-position = [1.0, 0.0, 0.3]
-top = 1.2
-
-[[gauge]]
-name = "level_far"
-kind = "level"
-position = [1.5, 0.0, 0.3]
-top = 1.2
-
-[[gauge]]
-name = "flow_a"
-kind = "flow"
-min = [0.8, 0.0, 0.0]
-max = [0.8, 1.2, 0.6]
-
-[[gauge]]
-name = "flow_b"
-kind = "flow"
-min = [1.2, 0.0, 0.0]
-max = [1.2, 1.2, 0.6]
-
-[[gauge]]
-name = "tank"
-kind = "force"
-wall = "tank"
-"""
+_POINTS = {
+    "column_low": (0.3, 0.1, 0.3),
+    "column_mid": (0.3, 0.4, 0.3),
+    "floor": (1.0, 0.05, 0.3),
+    "far_wall": (1.5, 0.1, 0.3),
+}
+_LEVELS = {"level_column": 0.3, "level_middle": 1.0, "level_far": 1.5}  # x of each line, z = 0.3, y 0 to 1.2
+_FLOWS = {"flow_a": 0.8, "flow_b": 1.2}  # x of each section across the tank
+_vec = lambda v: "[" + ", ".join(f"{c:g}" for c in v) + "]"  # noqa: E731
+TEN_GAUGES = "".join(
+    [f'\n[[gauge]]\nname = "{n}"\nkind = "point"\nposition = {_vec(p)}\n' for n, p in _POINTS.items()]
+    + [
+        f'\n[[gauge]]\nname = "{n}"\nkind = "level"\nposition = [{x:g}, 0, 0.3]\ntop = 1.2\n'
+        for n, x in _LEVELS.items()
+    ]
+    + [
+        f'\n[[gauge]]\nname = "{n}"\nkind = "flow"\nmin = [{x:g}, 0, 0]\nmax = [{x:g}, 1.2, 0.6]\n'
+        for n, x in _FLOWS.items()
+    ]
+    + ['\n[[gauge]]\nname = "tank"\nkind = "force"\nwall = "tank"\n']
+)
 
 
 def gauge_scene(folder: Path, gauges: bool) -> Path:
