@@ -37,9 +37,9 @@ def _restore_numba_threads():
 @pytest.fixture(scope="session", autouse=True)
 def _compile_kernels_on_the_other_core():
     """A fresh clone (CI) starts with an empty Numba cache, and most of the suite's time is compiling:
-    compile the three methods' kernels (ipsph/run/jit_signatures.json, as `ipsph run`'s helper does)
-    in a background process at a lower priority while the first tests run, so that later tests load
-    them. A test that needs a kernel first compiles it itself; the cache's writes are atomic."""
+    compile the three methods' kernels, then their field-wall passes (ipsph/run/jit_signatures.json,
+    as `ipsph run`'s helper does) in a background process at a lower priority while the first tests
+    run, so that later tests load them. A test that needs a kernel first compiles it itself; the cache's writes are atomic."""
     from ipsph.run import jit_warm
 
     if os.environ.get("IPSPH_NO_JIT_HELPER"):
@@ -47,7 +47,7 @@ def _compile_kernels_on_the_other_core():
         return
     code = (
         "import os; os.nice(10); from ipsph.run import jit_warm; "
-        "[jit_warm.compile_backwards(m) for m in jit_warm.METHODS if jit_warm.missing_from_cache(m)]"
+        "[jit_warm.compile_backwards(k) for k in jit_warm.KINDS if jit_warm.missing_from_cache(k)]"
     )
     proc = subprocess.Popen(
         [sys.executable, "-c", code],

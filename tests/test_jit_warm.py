@@ -21,8 +21,9 @@ from pathlib import Path
 from numba.core.registry import CPUDispatcher
 from ipsph.run import runner
 from ipsph.scene import default_scene_path, load_scene
-scene = load_scene(default_scene_path(), ["simulation.method=" + sys.argv[1], "simulation.particle_radius=0.04",
-                                          "simulation.end_time=0.08"])
+from ipsph.run.jit_warm import kind_overrides
+scene = load_scene(default_scene_path(), kind_overrides(sys.argv[1]) + ["simulation.particle_radius=0.04",
+                                                                        "simulation.end_time=0.08"])
 with tempfile.TemporaryDirectory() as tmp:
     runner.run(scene, runner.RunOptions(out_dir=Path(tmp) / "out", render=False, progress=False))
 used = sorted({(d.py_func.__module__, d.py_func.__qualname__, tuple(repr(t) for t in sig))
@@ -32,7 +33,7 @@ print(json.dumps(used))
 """
 
 
-@pytest.mark.parametrize("method", jit_warm.METHODS)
+@pytest.mark.parametrize("method", jit_warm.KINDS)
 @pytest.mark.slow
 def test_the_signature_list_holds_every_kernel_a_method_runs(method):
     """Fails when a kernel is added or its argument types change without `python -m scripts.jit_record`

@@ -9,10 +9,12 @@ front as usual; whenever it reaches a kernel the helper has already cached, Numb
 milliseconds. The two meet in the middle, so on an otherwise idle 2-core machine the compiling
 takes about half as long. A warm cache starts no helper (a few `stat` calls decide).
 
-The signatures are recorded, per method and in first-compile order, in `jit_signatures.json`
-beside this file: `python -m scripts.jit_record` regenerates it (a cold run of the coarse default
-scene per method, in a subprocess with an empty cache); tests/test_jit_warm.py fails when a
-kernel or signature the methods use is missing from it.
+The signatures are recorded, per run kind and in first-compile order, in `jit_signatures.json`
+beside this file. A run kind is a method, or a method against field walls ("ipsph+field"), whose
+density and projection passes are kernels of their own: `run_kind` names a scene's.
+`python -m scripts.jit_record` regenerates the file (a cold run of the coarse default scene per
+kind, in a subprocess with an empty cache); tests/test_jit_warm.py fails when a kernel or signature
+a kind uses is missing from it.
 """
 
 from __future__ import annotations
@@ -28,7 +30,20 @@ from pathlib import Path
 from ..params import METHOD_NAMES
 
 SIGNATURES_FILE = Path(__file__).with_name("jit_signatures.json")
-METHODS = METHOD_NAMES  # the methods whose kernels the signature file records
+METHODS = METHOD_NAMES
+FIELD = "field"  # the wall model with passes of its own (simulation.boundary_model)
+KINDS = METHODS + tuple(f"{m}+{FIELD}" for m in METHODS)  # the run kinds the signature file records
+
+
+def run_kind(method: str, boundary_model: str) -> str:
+    """The signature file's key for a run of `method` against `boundary_model`'s walls."""
+    return f"{method}+{FIELD}" if boundary_model == FIELD else method
+
+
+def kind_overrides(kind: str) -> list[str]:
+    """The scene overrides that make the default scene a run of `kind` (for the recorder and its test)."""
+    method, _, model = kind.partition("+")
+    return [f"simulation.method={method}"] + ([f"simulation.boundary_model={model}"] if model else [])
 
 
 def _types_namespace() -> dict:
@@ -58,10 +73,10 @@ def _dispatcher(module: str, qualname: str):
     return obj
 
 
-def missing_from_cache(method: str) -> int:
-    """How many of `method`'s kernels have no Numba cache index yet (0: warm; checks files only)."""
+def missing_from_cache(kind: str) -> int:
+    """How many of run `kind`'s kernels have no Numba cache index yet (0: warm; checks files only)."""
     n = 0
-    for module, qualname, _ in load_signatures().get(method, []):
+    for module, qualname, _ in load_signatures().get(kind, []):
         try:
             index = Path(_dispatcher(module, qualname)._cache._cache_file._index_path)
         except Exception:  # not a cached dispatcher any more: the file is stale, say cold
@@ -71,15 +86,15 @@ def missing_from_cache(method: str) -> int:
     return n
 
 
-def start(method: str):
-    """Start the helper when `method`'s kernels are not all cached; returns the Popen (or None)."""
-    if os.environ.get("IPSPH_NO_JIT_HELPER") or not load_signatures().get(method):
+def start(kind: str):
+    """Start the helper when run `kind`'s kernels are not all cached; returns the Popen (or None)."""
+    if os.environ.get("IPSPH_NO_JIT_HELPER") or not load_signatures().get(kind):
         return None
-    if missing_from_cache(method) == 0:
+    if missing_from_cache(kind) == 0:
         return None
     # its own session: a terminal's Ctrl-C goes to the run, which stops the helper (`stop`)
     return subprocess.Popen(
-        [sys.executable, "-m", "ipsph.run.jit_warm", method],
+        [sys.executable, "-m", "ipsph.run.jit_warm", kind],
         stdin=subprocess.DEVNULL,
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
@@ -99,10 +114,10 @@ def stop(proc) -> None:
         proc.wait()
 
 
-def compile_backwards(method: str, limit: int | None = None) -> list[str]:
-    """Compile (or load from the cache) `method`'s kernels, last-used first; returns their names."""
+def compile_backwards(kind: str, limit: int | None = None) -> list[str]:
+    """Compile (or load from the cache) run `kind`'s kernels, last-used first; returns their names."""
     done = []
-    entries = list(reversed(load_signatures().get(method, [])))
+    entries = list(reversed(load_signatures().get(kind, [])))
     for module, qualname, sig in entries[:limit]:
         try:
             _dispatcher(module, qualname).compile(_parse(sig))
@@ -113,14 +128,14 @@ def compile_backwards(method: str, limit: int | None = None) -> list[str]:
 
 
 def main(argv: list[str]) -> int:
-    if len(argv) in (1, 2) and argv[0] in METHODS:
+    if len(argv) in (1, 2) and argv[0] in KINDS:
         try:
             os.nice(5)  # the run itself comes first
         except OSError:  # pragma: no cover
             pass
         compile_backwards(argv[0], int(argv[1]) if len(argv) == 2 else None)
         return 0
-    print("usage: python -m ipsph.run.jit_warm METHOD [LIMIT]", file=sys.stderr)
+    print("usage: python -m ipsph.run.jit_warm KIND [LIMIT]  (KIND: a method, or METHOD+field)", file=sys.stderr)
     return 2
 
 

@@ -107,7 +107,7 @@ def _checked_run(scene: Scene, opts: RunOptions, clock: RunClock) -> int:
     from . import jit_warm
 
     if scene.backend == "cpu":  # cold Numba cache: compile on the other core too
-        clock.helper = jit_warm.start(scene.method.value)
+        clock.helper = jit_warm.start(jit_warm.run_kind(scene.method.value, scene.boundary_model))
     try:
         sampled = None
         if resume is None:
