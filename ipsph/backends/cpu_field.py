@@ -8,7 +8,7 @@ from . import wall_field as field_maths
 from ._cache import depend_on
 from .bodies import DENSITY_ROWS
 from .cpu_passes import _buffers, _chunk
-from .field_bodies import field_density_at, object_field, wall_field_at, wall_pressure_at, wall_project_at
+from .field_bodies import field_density_at, object_distance, wall_field_at, wall_pressure_at, wall_project_at
 from .kernels import FASTMATH as FAST
 from .kernels import w
 
@@ -29,7 +29,7 @@ def _project_one(i, x, v, h, phi_min, objects, moved):
 def _distance_one(i, p, h, objects, out):
     best = np.inf
     for k in range(objects[0].shape[0]):
-        best = min(best, object_field(k, p[i, 0], p[i, 1], p[i, 2], h, objects)[0])
+        best = min(best, object_distance(k, p[i, 0], p[i, 1], p[i, 2], objects)[0])
     out[i] = best
 
 

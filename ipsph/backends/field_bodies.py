@@ -4,8 +4,8 @@ geometry, one evaluation per fluid particle and wall object, no wall particles.
 Each wall object k is a shape in its own frame (a box of half extents e_k, a ball of radius R_k)
 placed by a rotation R_k and a position c_k: x_l = R_k^T (x - c_k). Its solid is the shape (an
 obstacle or a body, sign +1) or the shape's complement (a container, sign -1, fluid inside).
-`wall_field.*_field` gives the signed distance phi (positive in the fluid) and the kernel integral
-I of the shape's solid; the passes read the wall potential of phi (`object_potential`: a box
+`object_distance` gives the signed distance phi (positive in the fluid; `wall_field.box_distance`,
+a ball's, a mesh grid's); the passes read the wall potential of phi (`object_potential`: a box
 container per face, everything else through its one phi), and the potentials add (method.md
 section 11):
 
@@ -30,9 +30,9 @@ import math
 from numba import njit
 
 from .bodies import density_core, density_store
-from .field_grid import grid_distance, grid_kernel_integral
+from .field_grid import grid_distance
 from .kernels import FASTMATH
-from .wall_field import box_field, box_potential, face_potential, sphere_field
+from .wall_field import box_distance, box_potential, face_potential
 
 FAST = FASTMATH
 
@@ -68,32 +68,40 @@ def _culled(k, l0, l1, l2, kind, sign, size, reach):
 
 
 @njit(inline="always", fastmath=FAST)
-def object_field(k, p0, p1, p2, h, objects):
-    """(phi, grad phi, I, grad I) of object k at the world point p, in world axes; I of its solid
-    (a container's: the complement of its box), phi positive in the fluid."""
-    kind, sign, rot, pos, size, reach, vel, omega, qtab, otab, hdr, pool = objects
-    l0, l1, l2, _, _, _ = _local(k, p0, p1, p2, rot, pos)
-    container = sign[k] < 0.0  # fluid inside the shape, its solid the complement
+def _to_world(k, rot, g0, g1, g2):
+    """A vector of object k's frame in world axes: R_k g."""
+    return (
+        rot[k, 0, 0] * g0 + rot[k, 0, 1] * g1 + rot[k, 0, 2] * g2,
+        rot[k, 1, 0] * g0 + rot[k, 1, 1] * g1 + rot[k, 1, 2] * g2,
+        rot[k, 2, 0] * g0 + rot[k, 2, 1] * g1 + rot[k, 2, 2] * g2,
+    )
+
+
+@njit(inline="always", fastmath=FAST)
+def _local_distance(k, l0, l1, l2, kind, sign, size, hdr, pool):
+    """(phi, grad phi) of object k at the point l of its own frame, in its axes, positive in the fluid."""
     if kind[k] == GRID:
-        g = int(size[k, 0])
-        f, f0, f1, f2 = grid_distance(hdr, g, pool, l0, l1, l2)
-        m, m0, m1, m2 = grid_kernel_integral(hdr, g, pool, l0, l1, l2)
-        if container:
-            f, f0, f1, f2, m, m0, m1, m2 = -f, -f0, -f1, -f2, 1.0 - m, -m0, -m1, -m2
+        f, f0, f1, f2 = grid_distance(hdr, int(size[k, 0]), pool, l0, l1, l2)
     elif kind[k] == SPHERE:
-        f, f0, f1, f2, m, m0, m1, m2 = sphere_field(l0, l1, l2, size[k, 0], h, container)
+        s = math.sqrt(l0 * l0 + l1 * l1 + l2 * l2)
+        n0, n1, n2 = (l0 / s, l1 / s, l2 / s) if s > 0.0 else (0.0, 0.0, 1.0)
+        f, f0, f1, f2 = s - size[k, 0], n0, n1, n2
     else:
-        f, f0, f1, f2, m, m0, m1, m2 = box_field(
-            l0, l1, l2, size[k, 0], size[k, 1], size[k, 2], h, container, qtab, otab
-        )
-    # back to world axes: g_world = R_k g_local
-    w0 = rot[k, 0, 0] * f0 + rot[k, 0, 1] * f1 + rot[k, 0, 2] * f2
-    w1 = rot[k, 1, 0] * f0 + rot[k, 1, 1] * f1 + rot[k, 1, 2] * f2
-    w2 = rot[k, 2, 0] * f0 + rot[k, 2, 1] * f1 + rot[k, 2, 2] * f2
-    n0 = rot[k, 0, 0] * m0 + rot[k, 0, 1] * m1 + rot[k, 0, 2] * m2
-    n1 = rot[k, 1, 0] * m0 + rot[k, 1, 1] * m1 + rot[k, 1, 2] * m2
-    n2 = rot[k, 2, 0] * m0 + rot[k, 2, 1] * m1 + rot[k, 2, 2] * m2
-    return f, w0, w1, w2, m, n0, n1, n2
+        f, f0, f1, f2 = box_distance(l0, l1, l2, size[k, 0], size[k, 1], size[k, 2])
+    if sign[k] < 0.0:  # a container: the fluid inside the shape
+        f, f0, f1, f2 = -f, -f0, -f1, -f2
+    return f, f0, f1, f2
+
+
+@njit(inline="always", fastmath=FAST)
+def object_distance(k, p0, p1, p2, objects):
+    """(phi, grad phi) of object k at the world point p, in world axes, phi positive in the fluid (the
+    projection and the host's distance queries; the passes read the potential, object_potential)."""
+    kind, sign, rot, pos, size, _, _, _, _, _, hdr, pool = objects
+    l0, l1, l2, _, _, _ = _local(k, p0, p1, p2, rot, pos)
+    f, f0, f1, f2 = _local_distance(k, l0, l1, l2, kind, sign, size, hdr, pool)
+    w0, w1, w2 = _to_world(k, rot, f0, f1, f2)
+    return f, w0, w1, w2
 
 
 @njit(inline="always", fastmath=FAST)
@@ -112,22 +120,11 @@ def object_potential(k, p0, p1, p2, h, b, reach, objects):
     container = sign[k] < 0.0
     if kind[k] == BOX:
         m, m0, m1, m2 = box_potential(l0, l1, l2, size[k, 0], size[k, 1], size[k, 2], h, container, b, reach)
-    else:
-        if kind[k] == GRID:
-            f, f0, f1, f2 = grid_distance(hdr, int(size[k, 0]), pool, l0, l1, l2)
-            if container:
-                f, f0, f1, f2 = -f, -f0, -f1, -f2
-        else:
-            s = math.sqrt(l0 * l0 + l1 * l1 + l2 * l2)
-            n0, n1, n2 = (l0 / s, l1 / s, l2 / s) if s > 0.0 else (0.0, 0.0, 1.0)
-            f, f0, f1, f2 = s - size[k, 0], n0, n1, n2
-            if container:
-                f, f0, f1, f2 = -f, -f0, -f1, -f2
+    else:  # a ball and a grid read their signed distance
+        f, f0, f1, f2 = _local_distance(k, l0, l1, l2, kind, sign, size, hdr, pool)
         m, dm = face_potential(f / h, b, reach)
         m0, m1, m2 = dm * f0 / h, dm * f1 / h, dm * f2 / h
-    w0 = rot[k, 0, 0] * m0 + rot[k, 0, 1] * m1 + rot[k, 0, 2] * m2
-    w1 = rot[k, 1, 0] * m0 + rot[k, 1, 1] * m1 + rot[k, 1, 2] * m2
-    w2 = rot[k, 2, 0] * m0 + rot[k, 2, 1] * m1 + rot[k, 2, 2] * m2
+    w0, w1, w2 = _to_world(k, rot, m0, m1, m2)
     return m, w0, w1, w2
 
 
@@ -197,7 +194,7 @@ def wall_project_at(i, x, v, h, phi_min, objects, moved):
         l0, l1, l2, d0, d1, d2 = _local(k, p0, p1, p2, rot, pos)
         if _culled(k, l0, l1, l2, kind, sign, size, reach):
             continue
-        f, n0, n1, n2, _, _, _, _ = object_field(k, p0, p1, p2, h, objects)
+        f, n0, n1, n2 = object_distance(k, p0, p1, p2, objects)
         if f >= phi_min:
             continue
         norm = math.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
