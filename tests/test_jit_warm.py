@@ -33,7 +33,10 @@ print(json.dumps(used))
 """
 
 
-@pytest.mark.parametrize("method", jit_warm.KINDS)
+# The field kinds are not held to this here: with a warm cache their prange launchers load whole and
+# the wrappers they call (cpu_field._project_one, ...) are never seen, so the comparison would depend
+# on the cache's state. Recording only top-level compiles would let them join (next step).
+@pytest.mark.parametrize("method", jit_warm.METHODS)
 @pytest.mark.slow
 def test_the_signature_list_holds_every_kernel_a_method_runs(method):
     """Fails when a kernel is added or its argument types change without `python -m scripts.jit_record`
