@@ -39,7 +39,8 @@ def _compile_kernels_on_the_other_core():
     """A fresh clone (CI) starts with an empty Numba cache, and most of the suite's time is compiling:
     compile the three methods' kernels, then their field-wall passes (ipsph/run/jit_signatures.json,
     as `ipsph run`'s helper does) in a background process at a lower priority while the first tests
-    run, so that later tests load them. A test that needs a kernel first compiles it itself; the cache's writes are atomic."""
+    run, so that later tests load them. A test that needs a kernel first compiles it itself; the
+    cache's writes are atomic."""
     from ipsph.run import jit_warm
 
     if os.environ.get("IPSPH_NO_JIT_HELPER"):

@@ -194,9 +194,10 @@ def wall_project_at(i, x, v, h, phi_min, objects, moved):
         l0, l1, l2, d0, d1, d2 = _local(k, p0, p1, p2, rot, pos)
         if _culled(k, l0, l1, l2, kind, sign, size, reach):
             continue
-        f, n0, n1, n2 = object_distance(k, p0, p1, p2, objects)
+        f, g0, g1, g2 = _local_distance(k, l0, l1, l2, kind, sign, size, hdr, pool)
         if f >= phi_min:
             continue
+        n0, n1, n2 = _to_world(k, rot, g0, g1, g2)
         norm = math.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
         if norm < 1e-12:
             continue
