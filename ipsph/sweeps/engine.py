@@ -210,6 +210,7 @@ def run_sweep(sweep_file: str | Path, opts: SweepOptions) -> tuple[int, list[dic
     timings["close"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_begin
     save()
+    _log(_closing_line(code, recs, out_abs), opts)
     return code, recs
 
 
@@ -285,14 +286,18 @@ def _submit_and_wait(
     for r in failed:
         _log(f"member {r['name']} failed (exit {r['exit_code']}): {r['reason']}", opts)
     if interrupted:
-        _log("stopped; finished members are intact; continue with the same command and --resume", opts)
         return EXIT_INTERRUPTED
-    _log(
-        f"{sum(r['status'] == 'completed' for r in recs)}/{len(recs)} members completed in {out_abs}; "
-        f"{records.SWEEP_JSON}, {records.SUMMARY_CSV}; `ipsph plot {out_abs}` overlays them",
-        opts,
-    )
     return EXIT_MEMBERS_FAILED if failed else 0
+
+
+def _closing_line(code: int, recs: list[dict], out_abs: Path) -> str:
+    """What the sweep says last, once the cluster is closed (a worker's teardown log cannot follow it)."""
+    if code == EXIT_INTERRUPTED:
+        return "stopped; finished members are intact; continue with the same command and --resume"
+    return (
+        f"{sum(r['status'] == 'completed' for r in recs)}/{len(recs)} members completed in {out_abs}; "
+        f"{records.SWEEP_JSON}, {records.SUMMARY_CSV}; `ipsph plot {out_abs}` overlays them"
+    )
 
 
 def _collect(done, futures, by_name, progress) -> bool:
