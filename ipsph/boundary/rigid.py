@@ -87,6 +87,14 @@ def mass_properties(spec: BoundarySpec, density: float) -> tuple[float, np.ndarr
     return mass, com, inertia, v_total
 
 
+def _contact_mass(body: RigidBody, partner: RigidBody | None, at: np.ndarray, n: np.ndarray) -> float:
+    """The effective mass of the contact point along n: what the spring and its damping act on. With
+    the body's mass alone, a corner's damping rate 2 zeta omega m / m_eff exceeded the explicit limit
+    2 / dt and the contact bounced a brick that landed on its edge higher than it came (issue 42)."""
+    inv = body.inverse_mass_at(at, n) + (0.0 if partner is None else partner.inverse_mass_at(at, n))
+    return 1.0 / inv
+
+
 class RigidBody:
     """A dynamic body: centre of mass c, orientation q, velocity v, angular velocity w (world)."""
 
@@ -134,6 +142,13 @@ class RigidBody:
         r = self.rotation()
         self.v = self.v + dt * df / self.mass
         self.w = self.w + dt * (r @ self.inv_inertia_body @ r.T @ dtau)
+
+    def inverse_mass_at(self, point: np.ndarray, direction: np.ndarray) -> float:
+        """1 / the mass a unit impulse along `direction` at `point` meets: 1/m + (r x n) . I^-1 (r x n),
+        r from the centre of mass (a corner of a flat box: about m/6)."""
+        r = self.rotation()
+        arm = np.cross(point - self.c, direction)
+        return 1.0 / self.mass + float(arm @ (r @ self.inv_inertia_body @ r.T) @ arm)
 
     def place(self, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """World positions and velocities of particles placed at x0 at t = 0."""
@@ -256,7 +271,8 @@ class WallDriver:
 
             f = mu [omega^2 delta - 2 zeta omega (v_rel . n)]_+ n,   omega = 1 / (CONTACT_STEPS dt)
 
-        mu the body's mass (the reduced mass for two bodies, equal and opposite forces), v_rel the
+        mu the effective mass of the contact point along n (`_contact_mass`: both bodies' masses and
+        inertias at their lever arms; equal and opposite forces), v_rel the
         relative velocity at the contact point; tangentially a viscous friction -mu 2 zeta omega v_t,
         capped at CONTACT_FRICTION |f|. One contact, not one spring per pair: a spring per
         pair normalised by the pair count is not conservative (the count changes along the
@@ -307,14 +323,16 @@ class WallDriver:
                     if partner is None
                     else partner.v + np.cross(partner.w, at - partner.c)
                 )
-                mu = body.mass if partner is None else body.mass * partner.mass / (body.mass + partner.mass)
                 v_rel = v_mine - v_other
+                mu = _contact_mass(body, partner, at, n)
                 mag = max(mu * (om * om * ws.max() - 2.0 * CONTACT_DAMPING * om * float(np.dot(v_rel, n))), 0.0)
                 f = mag * n  # contacts push, never pull
                 v_t = v_rel - float(np.dot(v_rel, n)) * n  # friction: viscous, capped by Coulomb's mu_f f_n
                 speed_t = float(np.linalg.norm(v_t))
                 if speed_t > 0.0 and mag > 0.0:
-                    f = f - min(CONTACT_FRICTION * mag, mu * 2.0 * CONTACT_DAMPING * om * speed_t) * v_t / speed_t
+                    t_hat = v_t / speed_t
+                    mu_t = _contact_mass(body, partner, at, t_hat)
+                    f = f - min(CONTACT_FRICTION * mag, mu_t * 2.0 * CONTACT_DAMPING * om * speed_t) * t_hat
                 body.contact_force += f
                 body.contact_torque += np.cross(at - body.c, f)
                 if partner is not None:
