@@ -106,10 +106,15 @@ class RigidBody:
     def rotation(self) -> np.ndarray:
         return quat_matrix(self.q)
 
+    def inv_inertia(self) -> np.ndarray:
+        """The inverse inertia tensor in the world frame, R I_body^-1 R^T."""
+        r = self.rotation()
+        return r @ self.inv_inertia_body @ r.T
+
     def integrate(self, dt: float, g: np.ndarray) -> None:
         """Symplectic Euler: velocities from the forces, then the pose from the new velocities."""
         r = self.rotation()
-        inv_i = r @ self.inv_inertia_body @ r.T
+        inv_i = self.inv_inertia()
         i_w = r @ self.inertia_body @ r.T
         f = self.force + self.contact_force
         tau = self.torque + self.contact_torque
@@ -123,16 +128,14 @@ class RigidBody:
 
     def correct(self, dt: float, df: np.ndarray, dtau: np.ndarray) -> None:
         """Velocities only: the impulse dt (df, dtau) that the last `integrate` did not know of."""
-        r = self.rotation()
         self.v = self.v + dt * df / self.mass
-        self.w = self.w + dt * (r @ self.inv_inertia_body @ r.T @ dtau)
+        self.w = self.w + dt * (self.inv_inertia() @ dtau)
 
     def inverse_mass_at(self, point: np.ndarray, direction: np.ndarray) -> float:
         """1 / the mass a unit impulse along `direction` at `point` meets: 1/m + (r x n) . I^-1 (r x n),
         r from the centre of mass (a corner of a flat box: about m/6)."""
-        r = self.rotation()
         arm = np.cross(point - self.c, direction)
-        return 1.0 / self.mass + float(arm @ (r @ self.inv_inertia_body @ r.T) @ arm)
+        return 1.0 / self.mass + float(arm @ self.inv_inertia() @ arm)
 
     def place(self, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """World positions and velocities of particles placed at x0 at t = 0."""
