@@ -3,6 +3,12 @@ layer's height above the floor and the interior slope (means over the frames of 
 per-step peak speed and whether the kinetic energy grows (issue 39's tank rows).
 
     python scripts/tank_check.py [--models field akinci-volume] [--methods ipsph dfsph] [--r 0.02] [--t 4]
+                                 [--seeds N] [--where]
+
+A settled tank is never quite still, and its trajectory is chaotic: the same commit on another CPU
+(another rounding of the same sums) moves one run's p1 and slope by about 2 % and its peak speed by
+half. --seeds N runs N trajectories, each started from the lattice moved by a uniform jitter of
+JITTER_D d per coordinate (seed k), and prints each and the median [min, max] of every figure.
 """
 
 import argparse
@@ -16,7 +22,16 @@ from ipsph.scene import scene_from_dict
 
 TANK = [0.6, 1.0, 0.6]  # the container box from the origin [m]; the fluid fills it to FILL
 FILL = [0.6, 0.6, 0.6]
+JITTER_D = 1e-3  # --seeds: the start's jitter per coordinate, in d (far below any figure's resolution)
 AVERAGE_S = 1.0  # the layer figures are means over the frames of the last second (the tank is never quite still)
+
+
+def surface_height(y, d, r):
+    """The free surface over a set of full columns: the mean height of its top layer + r, the top layer
+    being as many particles as the bottom layer holds (one per column; a cube's n^(2/3) is not that
+    count when the columns are fewer than the layers, and took in part of the next layer down)."""
+    per_layer = int(np.count_nonzero(y < y.min() + 0.5 * d))
+    return np.sort(y)[-per_layer:].mean() + r
 
 
 def layers(sim, scene, r):
@@ -26,9 +41,8 @@ def layers(sim, scene, r):
     d, h, g, rho0 = 2 * r, sim.support, 9.81, scene.density0
     lo, hi = np.zeros(3), np.array(TANK)
     inner_xz = np.all(x[:, [0, 2]] > lo[[0, 2]] + h, axis=1) & np.all(x[:, [0, 2]] < hi[[0, 2]] - h, axis=1)
-    top_layer = np.sort(x[inner_xz, 1])[-int(inner_xz.sum() ** (2 / 3)) :]
-    surface = top_layer.mean() + r
     y = x[inner_xz, 1]
+    surface = surface_height(y, d, r)
     pi = p[inner_xz]
     ymin = y.min()
     first = y < ymin + 0.5 * d
@@ -46,13 +60,13 @@ def fastest(sim, r):
     x, v = sim.positions, sim.velocities
     speed = np.linalg.norm(v, axis=1)
     i = int(np.argmax(speed))
-    surface = np.sort(x[:, 1])[-int(len(x) ** (2 / 3)) :].mean() + r
-    side = min(x[i, 0], TANK[0] - x[i, 0], x[i, 2], TANK[2] - x[i, 2])
     d = 2 * r
+    surface = surface_height(x[:, 1], d, r)
+    side = min(x[i, 0], TANK[0] - x[i, 0], x[i, 2], TANK[2] - x[i, 2])
     return speed[i], (surface - x[i, 1]) / d, side / d, abs(v[i, 1]) / max(speed[i], 1e-30)
 
 
-def tank(method, model, r, t_end, extra=None, where=False):
+def tank(method, model, r, t_end, extra=None, where=False, seed=None):
     sim_keys = {"method": method, "particle_radius": r, "end_time": t_end, "boundary_model": model}
     sim_keys.update(extra or {})
     scene = scene_from_dict(
@@ -64,7 +78,10 @@ def tank(method, model, r, t_end, extra=None, where=False):
         },
         name=f"tank-{method}-{model}",
     )
-    sim = Simulation(scene, *sample_scene(scene)[:3])
+    x0, v0, xb = sample_scene(scene)[:3]
+    if seed is not None:
+        x0 = x0 + np.random.default_rng(seed).uniform(-JITTER_D, JITTER_D, x0.shape) * 2 * r
+    sim = Simulation(scene, x0, v0, xb)
     vmax, energy, proj, snaps, places = [], [], [0], [], []
     t0 = time.perf_counter()
 
@@ -117,6 +134,21 @@ def print_where(places):
         )
 
 
+def print_spread(runs):
+    """The median [min, max] over the seeds of every figure of a row."""
+
+    def f(key, fmt, i=None):
+        v = np.array([o[key] if i is None else o[key][i] for o in runs])
+        return f"{np.median(v):{fmt}} [{v.min():{fmt}}, {v.max():{fmt}}]"
+
+    print(
+        f"  median [range] of {len(runs)}: p1 {f('first_p', '.3f')}  p2 {f('second_p', '.3f')}  y1 {f('first_h_d', '.3f')} d  "
+        f"slope {f('slope', '+.2%')}  vmax after t/4 {f('vmax_late', '.3f')}  KE last third {f('energy', '.4f', 1)}  "
+        f"KE falling in {sum(o['energy'][1] <= o['energy'][0] for o in runs)} of {len(runs)}",
+        flush=True,
+    )
+
+
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--models", nargs="+", default=["field", "akinci-volume"])
@@ -124,6 +156,7 @@ if __name__ == "__main__":
     ap.add_argument("--r", type=float, default=0.02)
     ap.add_argument("--t", type=float, default=4.0)
     ap.add_argument("--where", action="store_true", help="where the fastest particle of each step is")
+    ap.add_argument("--seeds", type=int, default=0, help="N jittered trajectories per row, and their median [range]")
     a = ap.parse_args()
     print(
         f"method model n walls | p1/hyd p2/hyd | y1/d | slope (means over the last {AVERAGE_S:g} s) | vmax (after t/4) | "
@@ -131,12 +164,18 @@ if __name__ == "__main__":
     )
     for model in a.models:
         for method in a.methods:
-            o = tank(method, model, a.r, a.t, where=a.where)
-            print(
-                f"{o['method']:6s} {o['model']:14s} {o['n']:5d} {o['walls']:6d} | {o['first_p']:.3f} {o['second_p']:.3f} | "
-                f"{o['first_h_d']:.3f} | {o['slope']:+.3%} | {o['vmax']:.3f} ({o['vmax_late']:.3f}) | "
-                f"{o['energy'][0]:.4f} -> {o['energy'][1]:.4f} | {o['projections']} | {o['settle']} | {o['wall_s']:.0f}",
-                flush=True,
-            )
-            if a.where:
-                print_where(o["places"])
+            runs = []
+            for seed in range(a.seeds) if a.seeds else [None]:
+                o = tank(method, model, a.r, a.t, where=a.where, seed=seed)
+                runs.append(o)
+                print(
+                    f"{o['method']:6s} {o['model']:14s} {o['n']:5d} {o['walls']:6d} | {o['first_p']:.3f} {o['second_p']:.3f} | "
+                    f"{o['first_h_d']:.3f} | {o['slope']:+.3%} | {o['vmax']:.3f} ({o['vmax_late']:.3f}) | "
+                    f"{o['energy'][0]:.4f} -> {o['energy'][1]:.4f} | {o['projections']} | {o['settle']} | {o['wall_s']:.0f}"
+                    + (f" | seed {seed}" if seed is not None else ""),
+                    flush=True,
+                )
+                if a.where:
+                    print_where(o["places"])
+            if len(runs) > 1:
+                print_spread(runs)
