@@ -3,12 +3,14 @@ layer's height above the floor and the interior slope (means over the frames of 
 per-step peak speed and whether the kinetic energy grows (issue 39's tank rows).
 
     python scripts/tank_check.py [--models field akinci-volume] [--methods ipsph dfsph] [--r 0.02] [--t 4]
-                                 [--seeds N] [--where]
+                                 [--seeds N] [--where] [--layers]
 
 A settled tank is never quite still, and its trajectory is chaotic: the same commit on another CPU
 (another rounding of the same sums) moves one run's p1 and slope by about 2 % and its peak speed by
 half. --seeds N runs N trajectories, each started from the lattice moved by a uniform jitter of
 JITTER_D d per coordinate (seed k), and prints each and the median [min, max] of every figure.
+--layers prints the first layer's particle count once a second: on the frictionless field walls
+it grows as particles from above fill vacancies in it, the fastest events of a run.
 """
 
 import argparse
@@ -82,7 +84,7 @@ def tank(method, model, r, t_end, extra=None, where=False, seed=None):
     if seed is not None:
         x0 = x0 + np.random.default_rng(seed).uniform(-JITTER_D, JITTER_D, x0.shape) * 2 * r
     sim = Simulation(scene, x0, v0, xb)
-    vmax, energy, proj, snaps, places = [], [], [0], [], []
+    vmax, energy, proj, snaps, places, floor_layer = [], [], [0], [], [], []
     t0 = time.perf_counter()
 
     def on_step(s):
@@ -93,6 +95,9 @@ def tank(method, model, r, t_end, extra=None, where=False, seed=None):
             places.append((s.time, *fastest(sim, r)))
 
     def on_frame(s, k):
+        if abs(s.time - round(s.time)) < 1e-6:  # the first layer's count once a second
+            y = sim.positions[:, 1]
+            floor_layer.append(int(np.count_nonzero(y < y.min() + 0.5 * 2 * r)))
         if s.time >= t_end - AVERAGE_S - 1e-9:
             snaps.append(layers(s, scene, r))
 
@@ -117,6 +122,7 @@ def tank(method, model, r, t_end, extra=None, where=False, seed=None):
         settle=sim.settle_report.get("converged"),
         wall_s=wall,
         places=np.array(places).reshape(-1, 5),
+        floor_layer=floor_layer,
     )
 
 
@@ -156,6 +162,7 @@ if __name__ == "__main__":
     ap.add_argument("--r", type=float, default=0.02)
     ap.add_argument("--t", type=float, default=4.0)
     ap.add_argument("--where", action="store_true", help="where the fastest particle of each step is")
+    ap.add_argument("--layers", action="store_true", help="the first layer's particle count once a second")
     ap.add_argument("--seeds", type=int, default=0, help="N jittered trajectories per row, and their median [range]")
     a = ap.parse_args()
     print(
@@ -177,5 +184,7 @@ if __name__ == "__main__":
                 )
                 if a.where:
                     print_where(o["places"])
+                if a.layers:
+                    print(f"  first layer at t = 0, 1, 2, ... s: {o['floor_layer']} particles", flush=True)
             if len(runs) > 1:
                 print_spread(runs)
