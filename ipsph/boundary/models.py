@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..config import BoundarySpec, Role
-from ..params import BOUNDARY_MODELS, spacing
+from ..params import BOUNDARY_MODELS, FIELD_WALLS, spacing
 from .particles import Boundary
 from .sampling import boundary_positions
 
@@ -124,7 +124,7 @@ MODELS = {
             CONTAINER_OFFSET_D,
         ),
         FieldModel(
-            "field",
+            FIELD_WALLS,
             "no wall particles: every wall and body is a shape whose signed distance and exact kernel "
             "integral the fluid reads (method.md section 11); the fluid's first layer rests d/2 from the "
             "surfaces",

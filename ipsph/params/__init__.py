@@ -31,6 +31,7 @@ from .facts import (  # noqa: F401 - re-exported: every module reads its facts f
     BOUNDARY_ROLES,
     BYTES_PER_PARTICLE,
     COURANT,
+    FIELD_WALLS,
     METHOD_NAMES,
     MOTION_KEYS,
     MOTION_TYPES,

@@ -37,7 +37,8 @@ BYTES_PER_PARTICLE = 1024  # the solver's memory budget per fluid particle (docs
 
 METHOD_NAMES = ("ipsph", "pf", "dfsph")  # simulation.method; ipsph.methods.METHODS implements each
 BACKEND_NAMES = ("cpu", "cuda")  # simulation.backend; ipsph.backends.BACKENDS implements each
-BOUNDARY_MODELS = ("akinci-volume", "akinci-surface", "field")  # simulation.boundary_model; ipsph.boundary.MODELS
+FIELD_WALLS = "field"  # the wall model without wall particles, whose passes are its own (method.md section 11)
+BOUNDARY_MODELS = ("akinci-volume", "akinci-surface", FIELD_WALLS)  # simulation.boundary_model; ipsph.boundary.MODELS
 PRECISIONS = ("float64", "float32")  # simulation.precision: the real arrays' type
 
 # A step's timed phases, in report order: timer name -> (short label, what it times). Each method

@@ -27,11 +27,11 @@ import subprocess
 import sys
 from pathlib import Path
 
-from ..params import METHOD_NAMES
+from ..params import FIELD_WALLS, METHOD_NAMES
 
 SIGNATURES_FILE = Path(__file__).with_name("jit_signatures.json")
 METHODS = METHOD_NAMES
-FIELD = "field"  # the wall model with passes of its own (simulation.boundary_model)
+FIELD = FIELD_WALLS  # the wall model with passes of its own (simulation.boundary_model)
 KINDS = METHODS + tuple(f"{m}+{FIELD}" for m in METHODS)  # the run kinds the signature file records
 
 
