@@ -247,7 +247,6 @@ class WallDriver:
                 return motion.pivot + tr
         raise KeyError(grp)
 
-    # -- contacts ------------------------------------------------------------------------------
     # -- what the outputs and the clock read -----------------------------------------------------
     def max_speed(self) -> float:
         v = self.boundary.v

@@ -31,13 +31,12 @@ from ..params import FIELD_WALLS, METHOD_NAMES
 
 SIGNATURES_FILE = Path(__file__).with_name("jit_signatures.json")
 METHODS = METHOD_NAMES
-FIELD = FIELD_WALLS  # the wall model with passes of its own (simulation.boundary_model)
-KINDS = METHODS + tuple(f"{m}+{FIELD}" for m in METHODS)  # the run kinds the signature file records
+KINDS = METHODS + tuple(f"{m}+{FIELD_WALLS}" for m in METHODS)  # the run kinds the signature file records
 
 
 def run_kind(method: str, boundary_model: str) -> str:
     """The signature file's key for a run of `method` against `boundary_model`'s walls."""
-    return f"{method}+{FIELD}" if boundary_model == FIELD else method
+    return f"{method}+{FIELD_WALLS}" if boundary_model == FIELD_WALLS else method
 
 
 def kind_overrides(kind: str) -> list[str]:
