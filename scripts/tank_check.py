@@ -28,11 +28,16 @@ JITTER_D = 1e-3  # --seeds: the start's jitter per coordinate, in d (far below a
 AVERAGE_S = 1.0  # the layer figures are means over the frames of the last second (the tank is never quite still)
 
 
+def first_layer(y, d):
+    """Which of the heights y are the bottom layer's: within d/2 of the lowest."""
+    return y < y.min() + 0.5 * d
+
+
 def surface_height(y, d, r):
     """The free surface over a set of full columns: the mean height of its top layer + r, the top layer
     being as many particles as the bottom layer holds (one per column; a cube's n^(2/3) is not that
     count when the columns are fewer than the layers, and took in part of the next layer down)."""
-    per_layer = int(np.count_nonzero(y < y.min() + 0.5 * d))
+    per_layer = int(np.count_nonzero(first_layer(y, d)))
     return np.sort(y)[-per_layer:].mean() + r
 
 
@@ -47,7 +52,7 @@ def layers(sim, scene, r):
     surface = surface_height(y, d, r)
     pi = p[inner_xz]
     ymin = y.min()
-    first = y < ymin + 0.5 * d
+    first = first_layer(y, d)
     second = (y >= ymin + 0.5 * d) & (y < ymin + 1.5 * d)
     rel1 = np.mean(pi[first] / (rho0 * g * (surface - y[first])))
     rel2 = np.mean(pi[second] / (rho0 * g * (surface - y[second])))
@@ -96,8 +101,7 @@ def tank(method, model, r, t_end, extra=None, where=False, seed=None):
 
     def on_frame(s, k):
         if abs(s.time - round(s.time)) < 1e-6:  # the first layer's count once a second
-            y = sim.positions[:, 1]
-            floor_layer.append(int(np.count_nonzero(y < y.min() + 0.5 * 2 * r)))
+            floor_layer.append(int(np.count_nonzero(first_layer(sim.positions[:, 1], 2 * r))))
         if s.time >= t_end - AVERAGE_S - 1e-9:
             snaps.append(layers(s, scene, r))
 
