@@ -1,18 +1,18 @@
-"""The gauges' numerics, written once as numba functions (docs/gauges.md, "What each gauge computes").
+"""The gauges' numerics for one fluid particle or one gauge, written once as numba functions (docs/gauges.md,
+"What each gauge computes"); `passes` runs them over the fluid.
 
 Every function reads the fluid as a frame stores it: positions, velocities, densities, pressures and
 masses rounded to float32 (`_q`, `FRAME_DTYPE`), so the gauges of a run and `ipsph gauge` on its
 frames see the same numbers and agree exactly at frame times; the rounding (6e-8 relative) is far
 below what SPH interpolation resolves. Walls are read as the run holds them (float64, boundary.vtu).
-The kernel and its support are the solver's (`backends.kernels`). Sums run in a fixed order (the
-fluid's index order within cells of a small grid of the gauge's own), so a gauge gives the same
-value for the same arrays, whatever the thread count.
+The kernel and its support are the solver's (`backends.kernels`). Each gauge sums its particles in
+the fluid's index order (a force gauge: each particle's wall neighbours in the wall's canonical order),
+so a gauge gives the same value for the same arrays, whatever the thread count.
 
-    select         one pass over the fluid: per gauge, the particles in its box (CSR, index order)
-    point_values   Shepard interpolation at a point: p, v, rho = sum_j V_j f_j W / sum_j V_j W, V_j = m_j / rho_j
-    level_value    the height where the fluid fraction c = sum_j V_j W crosses 1/2 going up a vertical line
-    flow_value     the volume flux sum_j V_j (v_j . n) F(s_j) through a rectangle (F: W integrated over a plane)
-    wall_force     the fluid's pressure force and torque on a wall's particles, the reaction of Akinci's term
+    point_add      Shepard interpolation at a point: p, v, rho = sum_j V_j f_j W / sum_j V_j W, V_j = m_j / rho_j
+    level_walk     the height where the fluid fraction c = sum_j V_j W crosses 1/2 going up a vertical line
+    flow_add       the volume flux sum_j V_j (v_j . n) F(s_j) through a rectangle (F: W integrated over a plane)
+    force_at       the pressure force of one fluid particle on a wall, the reaction of Akinci's term
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from ..backends.kernels import grad_w_factor, w
 
@@ -36,83 +36,41 @@ def _q(a):
     return float(np.float32(a))
 
 
-@njit(cache=True)
-def select(x, boxes):
-    """(start, idx): for gauge g, idx[start[g]:start[g + 1]] are the particles whose frame position
-    lies in boxes[g] = (lo_x, lo_y, lo_z, hi_x, hi_y, hi_z), ascending. One pass over the fluid."""
-    k = boxes.shape[0]
-    count = np.zeros(k + 1, dtype=np.int64)
-    for i in range(x.shape[0]):
-        a0, a1, a2 = _q(x[i, 0]), _q(x[i, 1]), _q(x[i, 2])
-        for g in range(k):
-            b = boxes[g]
-            if b[0] <= a0 <= b[3] and b[1] <= a1 <= b[4] and b[2] <= a2 <= b[5]:
-                count[g + 1] += 1
-    start = np.cumsum(count)
-    idx = np.empty(start[k], dtype=np.int64)
-    fill = start[:k].copy()
-    for i in range(x.shape[0]):
-        a0, a1, a2 = _q(x[i, 0]), _q(x[i, 1]), _q(x[i, 2])
-        for g in range(k):
-            b = boxes[g]
-            if b[0] <= a0 <= b[3] and b[1] <= a1 <= b[4] and b[2] <= a2 <= b[5]:
-                idx[fill[g]] = i
-                fill[g] += 1
-    return start, idx
+@njit(inline="always")
+def point_add(acc, a0, a1, a2, q0, q1, q2, v, rho, p, m, j, h):
+    """Fluid particle j (at a0, a1, a2) into the point gauge at q: acc = (sum V W, sum V W p,
+    sum V W v (3), sum V W rho, n), over the particles within H."""
+    d0, d1, d2 = a0 - q0, a1 - q1, a2 - q2
+    r = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+    if r < h:
+        rj = _q(rho[j])
+        wv = _q(m[j]) / rj * w(r, h)
+        acc[0] += wv
+        acc[1] += wv * _q(p[j])
+        acc[2] += wv * _q(v[j, 0])
+        acc[3] += wv * _q(v[j, 1])
+        acc[4] += wv * _q(v[j, 2])
+        acc[5] += wv * rj
+        acc[6] += 1.0
 
 
-@njit(cache=True)
-def point_values(x, v, rho, p, m, start, idx, gauges, points, h, out):
-    """For each point gauge k (its index gauges[k] into the CSR start/idx of `select`):
-    out[k] = (p, vx, vy, vz, rho, n) at points[k], Shepard-normalised SPH interpolation over the n
-    fluid particles within H; NaN values when n < MIN_NEIGHBOURS."""
-    for k in range(gauges.shape[0]):
-        g = gauges[k]
-        q0, q1, q2 = points[k, 0], points[k, 1], points[k, 2]
-        n = 0
-        s = sp = s0 = s1 = s2 = sr = 0.0
-        for t in range(start[g], start[g + 1]):
-            j = idx[t]
-            d0, d1, d2 = _q(x[j, 0]) - q0, _q(x[j, 1]) - q1, _q(x[j, 2]) - q2
-            r = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-            if r < h:
-                rj = _q(rho[j])
-                wv = _q(m[j]) / rj * w(r, h)
-                n += 1
-                s += wv
-                sp += wv * _q(p[j])
-                s0 += wv * _q(v[j, 0])
-                s1 += wv * _q(v[j, 1])
-                s2 += wv * _q(v[j, 2])
-                sr += wv * rj
-        out[k, 5] = n
-        if n < MIN_NEIGHBOURS or not s > 0.0:
-            out[k, :5] = np.nan
-        else:
-            out[k, 0], out[k, 1], out[k, 2], out[k, 3], out[k, 4] = sp / s, s0 / s, s1 / s, s2 / s, sr / s
+@njit(inline="always")
+def point_finish(acc):
+    """acc of `point_add` -> (p, vx, vy, vz, rho) in acc[:5]; NaN with fewer than MIN_NEIGHBOURS particles."""
+    s = acc[0]
+    if acc[6] < MIN_NEIGHBOURS or not s > 0.0:
+        acc[:5] = np.nan
+    else:
+        acc[0], acc[1], acc[2], acc[3], acc[4] = acc[1] / s, acc[2] / s, acc[3] / s, acc[4] / s, acc[5] / s
 
 
-@njit(cache=True)
-def level_value(x, rho, m, idx, x0, z0, y0, top, step, h):
-    """The free-surface height on the vertical line (x0, y, z0), y0 <= y <= top: going up from y0,
-    the first wet sample (fluid fraction c >= 1/2) and then the first dry one above it; the
-    crossing is interpolated linearly between the two. top if the line is wet to its top, NaN if
-    no sample is wet. c(y) = sum_j V_j W is evaluated every `step` metres."""
-    nc = idx.shape[0]
-    ys = np.empty(nc)
-    r2 = np.empty(nc)
-    vol = np.empty(nc)
-    n = 0
-    for k in range(nc):
-        j = idx[k]
-        d0, d2 = _q(x[j, 0]) - x0, _q(x[j, 2]) - z0
-        rr = d0 * d0 + d2 * d2
-        if rr < h * h:
-            ys[n] = _q(x[j, 1])
-            r2[n] = rr
-            vol[n] = _q(m[j]) / _q(rho[j])
-            n += 1
-    order = np.argsort(ys[:n], kind="mergesort")
+@njit(inline="always")
+def level_walk(ys, r2, vol, order, n, y0, top, step, h):
+    """The free-surface height on a vertical line from y0 to top, given its n fluid particles within
+    H of the line (heights ys, squared distances r2 from it, volumes vol; `order` sorts them by
+    height, stably): going up from y0, the first wet sample (fluid fraction c >= 1/2) and then the
+    first dry one above it; the crossing is interpolated linearly between the two. top if the line
+    is wet to its top, NaN if no sample is wet. c(y) = sum_j V_j W is evaluated every `step` metres."""
     ns = max(int(math.ceil((top - y0) / step)), 1) + 1
     dy = (top - y0) / (ns - 1)
     lo = 0
@@ -147,30 +105,53 @@ def plane_kernel(s, h):
     return 32.0 / h * (b4 / 4.0 - b4 * big / 5.0 - 4.0 * (s4 / 8.0 - s4 * small / 5.0))
 
 
-@njit(cache=True)
-def flow_value(x, v, rho, m, idx, lo, hi, axis, h):
-    """Volume flux through the rectangle lo..hi (flat along `axis`, counted positive along +axis):
-    Q = sum_j V_j v_j[axis] F(s_j) over the particles within H of its plane whose projection falls
-    inside it (F = plane_kernel, s_j their distance from the plane); V_j = m_j / rho_j."""
-    plane = lo[axis]
-    total = 0.0
-    for k in range(idx.shape[0]):
-        j = idx[k]
-        inside = True
-        for a in range(3):
-            if a != axis:
-                c = _q(x[j, a])
-                if c < lo[a] or c > hi[a]:
-                    inside = False
-        if not inside:
-            continue
-        s = _q(x[j, axis]) - plane
-        if abs(s) < h:
-            total += _q(m[j]) / _q(rho[j]) * _q(v[j, axis]) * plane_kernel(s, h)
-    return total
+@njit(inline="always")
+def flow_add(x, v, rho, m, j, lo, hi, axis, h):
+    """Fluid particle j's share of the volume flux through the rectangle lo..hi (flat along `axis`,
+    counted positive along +axis): V_j v_j[axis] F(s_j) when it lies within H of the plane and its
+    projection inside the rectangle (F = plane_kernel, s_j its distance from the plane), else 0."""
+    for a in range(3):
+        if a != axis:
+            c = _q(x[j, a])
+            if c < lo[a] or c > hi[a]:
+                return 0.0
+    s = _q(x[j, axis]) - lo[axis]
+    if abs(s) < h:
+        return _q(m[j]) / _q(rho[j]) * _q(v[j, axis]) * plane_kernel(s, h)
+    return 0.0
 
 
-GRID_CELL_H = 0.5  # the gauges' own grids: cells of H/2 (a support sphere scans ~11 H^3 of cells, not 27)
+@njit(inline="always")
+def force_at(a0, a1, a2, coeff, xw, mw, cand, first, last, h, buf):
+    """F_i = sum_b f_ib, the pressure force of the fluid particle i at a on the wall particles
+    b = cand[first:last] (a superset of its wall neighbours):
+
+        f_ib = m_i (p_i / rho_i^2) m_b grad W(x_i - x_b) = coeff m_b grad W(x_i - x_b)
+
+    the reaction of the pressure term the walls exert on the fluid [AIA*12] (rigid.wall_forces with
+    the pressure p = k rho^2 each method writes). f_ib acts along x_i - x_b, so its torque about a
+    centre c at x_b is the one at x_i: the torque of the wall's f_ib is (x_i - c) x F_i. As the
+    solver's bodies do, the neighbours within H are first gathered into `buf` (x_i - x_b, m_b), then
+    the kernel is evaluated over that contiguous block; the pairs are summed in `cand`'s order."""
+    hh = h * h
+    n = 0
+    for t in range(first, last):
+        b = cand[t]
+        d0, d1, d2 = a0 - xw[b, 0], a1 - xw[b, 1], a2 - xw[b, 2]
+        if d0 * d0 + d1 * d1 + d2 * d2 < hh:
+            buf[0, n], buf[1, n], buf[2, n], buf[3, n] = d0, d1, d2, mw[b]
+            n += 1
+    f0 = f1 = f2 = 0.0
+    for k in range(n):
+        d0, d1, d2 = buf[0, k], buf[1, k], buf[2, k]
+        g = buf[3, k] * grad_w_factor(math.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
+        f0 += g * d0
+        f1 += g * d1
+        f2 += g * d2
+    return coeff * f0, coeff * f1, coeff * f2
+
+
+GRID_CELL_H = 0.5  # the viscous part's own grids: cells of H/2 (a support sphere scans ~11 H^3 of cells, not 27)
 
 
 @njit(cache=True)
@@ -219,34 +200,6 @@ def cell_range(p, origin, dims, cell, h):
     return lo0, lo1, lo2, hi0, hi1, hi2
 
 
-@njit(cache=True)
-def wall_force(x, rho, p, m, idx, xw, mw, centre, h, out):
-    """The fluid's pressure force on the wall particles xw (masses mw = rho0 Psi_b) and its torque
-    about `centre`, out = (Fx, Fy, Fz, Tx, Ty, Tz):
-
-        f_b = sum_i m_i (p_i / rho_i^2) m_b grad W(x_i - x_b),   F = sum_b f_b,   T = sum_b (x_b - c) x f_b
-
-    the reaction of the pressure term the walls exert on the fluid [AIA*12] (rigid.wall_forces
-    with the pressure p = k rho^2 each method writes). idx: the fluid candidates; each f_b sums its
-    fluid neighbours cell by cell (the wall particles in parallel), then F and T sum the f_b in the
-    order given, so the value does not depend on the thread count."""
-    nc = idx.shape[0]
-    xs = np.empty((nc, 3))
-    coeff = np.empty(nc)
-    for k in range(nc):
-        j = idx[k]
-        xs[k, 0], xs[k, 1], xs[k, 2] = _q(x[j, 0]), _q(x[j, 1]), _q(x[j, 2])
-        rj = _q(rho[j])
-        coeff[k] = _q(m[j]) * _q(p[j]) / (rj * rj)
-    cell = GRID_CELL_H * h
-    origin, dims, order, start = _grid(xs, cell)
-    fw = np.empty((xw.shape[0], 3))
-    _wall_particle_forces(xs, coeff, origin, dims, order, start, cell, xw, mw, h, fw)
-    out[:] = 0.0
-    for b in range(xw.shape[0]):
-        add_force_torque(out, xw[b], centre, fw[b, 0], fw[b, 1], fw[b, 2])
-
-
 @njit(inline="always")
 def add_force_torque(out, at, centre, f0, f1, f2):
     """out (Fx, Fy, Fz, Tx, Ty, Tz) += the force f acting at `at` and its torque about `centre`."""
@@ -257,28 +210,3 @@ def add_force_torque(out, at, centre, f0, f1, f2):
     out[3] += e1 * f2 - e2 * f1
     out[4] += e2 * f0 - e0 * f2
     out[5] += e0 * f1 - e1 * f0
-
-
-@njit(parallel=True, cache=True)
-def _wall_particle_forces(xs, coeff, origin, dims, order, start, cell, xw, mw, h, fw):
-    """fw[b] = f_b of `wall_force` for every wall particle b, each a sum in cell order."""
-    hh = h * h
-    for b in prange(xw.shape[0]):
-        f0 = f1 = f2 = 0.0
-        lo0, lo1, lo2, hi0, hi1, hi2 = cell_range(xw[b], origin, dims, cell, h)
-        for c2 in range(lo2, hi2 + 1):
-            for c1 in range(lo1, hi1 + 1):
-                for c0 in range(lo0, hi0 + 1):
-                    c = c0 + dims[0] * (c1 + dims[1] * c2)
-                    for t in range(start[c], start[c + 1]):
-                        i = order[t]
-                        d0, d1, d2 = xs[i, 0] - xw[b, 0], xs[i, 1] - xw[b, 1], xs[i, 2] - xw[b, 2]
-                        rr = d0 * d0 + d1 * d1 + d2 * d2
-                        if rr < hh:  # most candidates of a cell scan lie beyond H: no root for them
-                            r = math.sqrt(rr)
-                            if r < h:
-                                g = coeff[i] * grad_w_factor(r, h)
-                                f0 += g * d0
-                                f1 += g * d1
-                                f2 += g * d2
-        fw[b, 0], fw[b, 1], fw[b, 2] = mw[b] * f0, mw[b] * f1, mw[b] * f2

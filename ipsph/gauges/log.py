@@ -24,10 +24,8 @@ _UNIT = re.compile(r"\s*\[[^\]]*\]\s*$")
 
 
 def _fmt(v) -> str:
-    if v is None:
-        return ""
-    v = float(v)
-    return repr(v) if math.isfinite(v) else ("nan" if math.isnan(v) else ("inf" if v > 0 else "-inf"))
+    """A cell: empty for None, else the float's repr (exact; `nan`, `inf` and `-inf` as they are)."""
+    return "" if v is None else repr(float(v))
 
 
 def column_name(header: str) -> str:

@@ -3,8 +3,9 @@
 The same object serves a run (`log.GaugeLog`, the Python API) and a finished run's frames
 (`replay`): `values(t, x, v, rho, p, m, walls)` takes the fluid's arrays and a wall source
 (`walls.RunWalls` or `walls.FrameWalls`) and returns one number per column. The numerics are in
-`kernels`; this module only lays the gauges out (one box per gauge for the one pass over the
-fluid, the columns, their units and notes) and keeps the level gauges' highest level so far.
+`kernels` and run in `passes`; this module lays the gauges out once (the arrays the passes read and
+write: a box, a kind and parameters per gauge, the outputs and their columns, units and notes) and
+keeps the level gauges' highest level so far.
 """
 
 from __future__ import annotations
@@ -15,7 +16,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..config import GaugeSpec, Scene
+from ..neighbours.rows import grown_stride
 from . import kernels as K
+from . import passes as P
+from .kernels import FRAME_DTYPE
+from .walls import WallGrids
 
 
 @dataclass(frozen=True)
@@ -39,6 +44,7 @@ class Column:
 TIME = Column("", "time", "s", "simulated time of the sample (the end of a step)")
 _EMPTY = np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])  # a box (lo, hi) that holds nothing
 _AXES = "xyz"
+_KIND = {"point": P.POINT, "level": P.LEVEL, "flow": P.FLOW, "force": P.FORCE}
 
 
 def point_columns(g: GaugeSpec, h: float) -> list[Column]:
@@ -139,24 +145,7 @@ class Gauges:
                 self.columns += force_columns(g, c, self.viscous)
             self.spans.append((first, len(self.columns)))
         self.level_max = {g.name: math.nan for g in self.specs if g.kind == "level"}
-        self._boxes = np.tile(_EMPTY, (len(self.specs), 1))  # a force gauge's box: its wall's, when due
-        for k, g in enumerate(self.specs):
-            if g.kind != "force":
-                self._boxes[k] = self._box(g)
-        # laid out once: the point gauges (one kernel call for all), their columns of point_values'
-        # (p, vx, vy, vz, rho, n), the flow rectangles, the force gauges
-        self._points = np.array([k for k, g in enumerate(self.specs) if g.kind == "point"], dtype=np.int64)
-        self._point_xyz = np.array([self.specs[k].position for k in self._points], dtype=np.float64).reshape(-1, 3)
-        self._point_out = np.empty((len(self._points), 6))
-        picks = {"pressure": [0], "velocity": [1, 2, 3], "density": [4]}
-        self._point_picks = [[c for q in self.specs[k].quantities for c in picks[q]] for k in self._points]
-        self._rects = {
-            k: (np.asarray(g.box_min, dtype=np.float64), np.asarray(g.box_max, dtype=np.float64), _flat_axis(g))
-            for k, g in enumerate(self.specs)
-            if g.kind == "flow"
-        }
-        self._forces = [k for k, g in enumerate(self.specs) if g.kind == "force"]
-        self._wall_boxes: dict[int, tuple] = {}  # force gauge -> (its wall's positions, their bounding box)
+        self._layout()
 
     @property
     def headers(self) -> list[str]:
@@ -177,57 +166,104 @@ class Gauges:
             return np.concatenate([lo - pad, hi + pad])
         return np.concatenate([lo - h, hi + h])
 
+    def _layout(self) -> None:
+        """The arrays `passes.sample` reads and writes, laid out once: each gauge's kind, box,
+        parameters and slot (a level gauge's row of the level lists, a force gauge's wall grid),
+        the outputs `acc`, and where each column reads acc (`_source`)."""
+        n_g = len(self.specs)
+        self._kinds = np.array([_KIND[g.kind] for g in self.specs], dtype=np.int64)
+        self._boxes = np.tile(_EMPTY, (n_g, 1))  # a force gauge's box: its wall's, when due
+        self._par = np.zeros((n_g, 8))
+        self._slot = np.zeros(n_g, dtype=np.int64)
+        self._levels = [k for k, g in enumerate(self.specs) if g.kind == "level"]
+        self._forces = [k for k, g in enumerate(self.specs) if g.kind == "force"]
+        source = []
+        for k, g in enumerate(self.specs):
+            if g.kind != "force":
+                self._boxes[k] = self._box(g)
+            if g.kind == "point":
+                self._par[k, :3] = g.position
+                picks = {"pressure": [0], "velocity": [1, 2, 3], "density": [4]}
+                source += [k * P.ACC + c for q in g.quantities for c in picks[q]]
+            elif g.kind == "level":
+                self._par[k, :4] = (*g.position, g.top)
+                self._slot[k] = self._levels.index(k)
+                source += [k * P.ACC + {"level": 0, "level_max": 1}[q] for q in g.quantities]
+            elif g.kind == "flow":
+                self._par[k, :7] = (*g.box_min, *g.box_max, _flat_axis(g))
+                source.append(k * P.ACC)
+            else:
+                self._par[k, :3] = self.centres[g.name]
+                self._slot[k] = self._forces.index(k)
+                parts = (0, 6) if self.viscous else (0,)
+                picks = {"force": [0, 1, 2], "torque": [3, 4, 5]}
+                source += [k * P.ACC + part + c for part in parts for q in picks if q in g.quantities for c in picks[q]]
+        self._source = np.array(source, dtype=np.int64)
+        self._picked = np.empty(len(source))
+        self._acc = np.zeros((n_g, P.ACC))
+        self._due = np.ones(n_g, dtype=np.bool_)
+        self._level_lists(256)
+        self._walls = WallGrids(self.h)
+        self._fi = np.zeros((0, max(len(self._forces), 1), 3))  # wall_forces' F_i per particle and force gauge
+
+    def _level_lists(self, width: int) -> None:
+        """The level gauges' particle lists (one row each, `width` wide) and the scratch of their walk."""
+        self._lvl_idx = np.zeros((len(self._levels), width), dtype=np.int64)
+        self._lvl_count = np.zeros(len(self._levels), dtype=np.int64)
+        self._lvl_real = np.zeros((3, width))
+        self._lvl_int = np.zeros((2, width), dtype=np.int64)
+
     def values(self, t: float, x, v, rho, p, m, due=None) -> list[float | None]:
         """One value per column for the fluid's arrays at time t (None for gauges not in `due`, a
         set of gauge indices; all when None). Updates the level gauges' highest level so far."""
-        boxes = self._boxes
-        force_walls = {}
-        for k in self._forces:
-            boxes[k] = _EMPTY
-            if due is None or k in due:
-                g = self.specs[k]
-                xw, mw = self.walls.arrays(g.wall, t)
-                force_walls[k] = (xw, mw)
-                reach = (2.0 if self.viscous else 1.0) * self.h  # the viscous part: i's own neighbours too
-                if len(xw):
-                    seen = self._wall_boxes.get(k)
-                    if seen is None or seen[0] is not xw:  # a static wall's arrays come back the same
-                        seen = self._wall_boxes[k] = (xw, np.concatenate([xw.min(axis=0), xw.max(axis=0)]))
-                    boxes[k, :3], boxes[k, 3:] = seen[1][:3] - reach, seen[1][3:] + reach
-        start, idx = K.select(x, boxes)
-        out: list[float | None] = [None] * len(self.columns)
-        if len(self._points):
-            K.point_values(x, v, rho, p, m, start, idx, self._points, self._point_xyz, self.h, self._point_out)
-            for k, (g, picks) in enumerate(zip(self._points, self._point_picks)):
-                if due is None or g in due:
-                    first = self.spans[g][0]
-                    out[first : first + len(picks)] = self._point_out[k, picks].tolist()
-        for k, g in enumerate(self.specs):
-            if g.kind == "point" or due is not None and k not in due:
-                continue
-            cand = idx[start[k] : start[k + 1]]
-            first, _ = self.spans[k]
-            if g.kind == "level":
-                x0, y0, z0 = g.position
-                level = float(K.level_value(x, rho, m, cand, x0, z0, y0, g.top, self.step, self.h))
-                if not math.isnan(level) and not level <= self.level_max[g.name]:
-                    self.level_max[g.name] = level
-                got = {"level": level, "level_max": self.level_max[g.name]}
-                vals = [got[q] for q in g.quantities]
-            elif g.kind == "flow":
-                lo, hi, axis = self._rects[k]
-                vals = [float(K.flow_value(x, v, rho, m, cand, lo, hi, axis, self.h))]
-            else:
-                xw, mw = force_walls[k]
-                buf = np.empty(6)
-                K.wall_force(x, rho, p, m, cand, xw, mw, self.centres[g.name], self.h, buf)
-                vals = _force_values(g, buf)
-                if self.viscous:
-                    vals += _force_values(g, self._viscous(g, t, x, v, rho, m, cand, xw, mw))
-            out[first : first + len(vals)] = vals
+        self._due[:] = due is None
+        if due is not None:
+            self._due[list(due)] = True
+        acc, w = self._acc, self._walls
+        if self._forces:
+            self._force_walls(t)
+            if self._fi.shape[0] != len(x):
+                self._fi = np.zeros((len(x), len(self._forces), 3))  # a changed particle count (emitters, sinks)
+            P.wall_forces(
+                x, rho, p, m, self._boxes, self._kinds, self._slot, self._due, self.h,
+                w.x, w.m, w.origin, w.dims, w.start, w.offset, w.cand, w.cell, w.buf, self._fi,
+            )  # fmt: skip
+        while True:
+            most = P.sample(
+                x, v, rho, p, m, self._boxes, self._kinds, self._par, self._slot, self._due, self.h, self.step,
+                self._fi, self._lvl_idx, self._lvl_count, self._lvl_real, self._lvl_int, acc,
+            )  # fmt: skip
+            if most <= self._lvl_idx.shape[1]:
+                break
+            self._level_lists(grown_stride(self._lvl_idx.shape[1], most))  # rare: a longer line of fluid
+        for k in self._levels:
+            level, name = acc[k, 0], self.specs[k].name
+            if self._due[k] and not math.isnan(level) and not level <= self.level_max[name]:
+                self.level_max[name] = float(level)
+            acc[k, 1] = self.level_max[name]
+        if self.viscous:
+            for k in self._forces:
+                if self._due[k]:
+                    acc[k, 6:] = self._viscous(
+                        self.specs[k], t, x, v, rho, m, *self.walls.arrays(self.specs[k].wall, t)
+                    )
+        out: list[float | None] = np.take(acc, self._source, out=self._picked).tolist()
+        if due is not None and len(due) < len(self.specs):
+            for k, (first, last) in enumerate(self.spans):
+                if k not in due:
+                    out[first:last] = [None] * (last - first)
         return out
 
-    def _viscous(self, g: GaugeSpec, t: float, x, v, rho, m, cand, xw, mw) -> np.ndarray:
+    def _force_walls(self, t: float) -> None:
+        """The force gauges' walls now: their grids (`WallGrids`: kept while a wall's arrays are the same
+        objects, as a static wall's are) and their boxes, the wall's bounds plus H (nothing when not due)."""
+        walls = [self.walls.arrays(self.specs[k].wall, t) if self._due[k] else None for k in self._forces]
+        self._walls.update(walls)
+        for k, f in zip(self._forces, range(len(self._forces))):
+            got = self._walls.bounds[f]
+            self._boxes[k] = _EMPTY if got is None or walls[f] is None else got
+
+    def _viscous(self, g: GaugeSpec, t: float, x, v, rho, m, xw, mw) -> np.ndarray:
         """(F, T) of the implicit viscosity's wall friction on the wall of `g` (NaN where the wall's
         velocities are unknown: a rigid body's after the run, bodies.csv has no angular velocity)."""
         from ..methods.viscosity import full_trace
@@ -238,6 +274,9 @@ class Gauges:
         if vw is None or not len(xw):
             return out
         xa, ma = self.walls.everything(t)
+        reach = 2.0 * self.h  # the fluid within 2H of the wall: complete neighbourhoods for those within H
+        xq = x.astype(FRAME_DTYPE).astype(np.float64)
+        cand = np.flatnonzero(np.all((xq >= xw.min(axis=0) - reach) & (xq <= xw.max(axis=0) + reach), axis=1))
         reach = 3.0 * self.h  # the walls near the fluid within 2H of this wall
         near = np.all((xa >= xw.min(axis=0) - reach) & (xa <= xw.max(axis=0) + reach), axis=1)
         sc = self.scene
@@ -254,12 +293,3 @@ class Gauges:
             seen = [a[np.isfinite(a)] for q in ("level", "level_max") if (a := columns.get(f"{name}.{q}")) is not None]
             seen = np.concatenate([np.zeros(0)] + seen)
             self.level_max[name] = float(seen.max()) if len(seen) else math.nan
-
-
-def _force_values(g: GaugeSpec, buf: np.ndarray) -> list[float]:
-    vals = []
-    if "force" in g.quantities:
-        vals += [float(c) for c in buf[:3]]
-    if "torque" in g.quantities:
-        vals += [float(c) for c in buf[3:]]
-    return vals

@@ -18,6 +18,7 @@ import numpy as np
 from ..boundary import model_of
 from ..config import Scene
 from ..errors import OutputError
+from . import passes
 
 
 def canonical_walls(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
@@ -199,3 +200,53 @@ class FrameWalls:
     def centre(self, name: str) -> np.ndarray:
         k = wall_index(self.scene, name)
         return _box_centre(self.x0[self.start[k] : self.start[k + 1]])
+
+
+class WallGrids:
+    """The force gauges' walls as `passes.sample` reads them: every gauge's wall particles by cell
+    (`passes.wall_cells`), joined into one set of arrays (see `passes`). A gauge's grid is rebuilt
+    only when its wall's arrays are new objects (a moving wall, every sample; a static wall's come
+    back the same from RunWalls and FrameWalls, so its grid is built once)."""
+
+    _NONE = (np.zeros((0, 3)), np.zeros(0))  # a gauge not sampled yet: no wall particles
+
+    def __init__(self, h: float):
+        self.h, self.cell = h, passes.WALL_CELL_H * h
+        self._grids: list = []  # per gauge: (xw, mw, origin, dims, start, cand)
+        self.bounds: list = []  # per gauge: (lo, hi) of its wall plus H, or None for an empty wall
+        self.update([])
+
+    def update(self, walls: list) -> None:
+        """walls[f]: (positions, masses) of force gauge f's wall now, or None (not due: kept as it was)."""
+        changed = len(self._grids) != len(walls) or not walls
+        if changed:
+            self._grids, self.bounds = [self._grid(*self._NONE) for _ in walls], [None] * len(walls)
+        for f, got in enumerate(walls):
+            old = self._grids[f]
+            if got is None or old[0] is got[0] and old[1] is got[1]:
+                continue
+            xw, mw = got
+            self._grids[f] = self._grid(xw, mw)
+            self.bounds[f] = np.concatenate([xw.min(axis=0) - self.h, xw.max(axis=0) + self.h]) if len(xw) else None
+            changed = True
+        if changed:
+            self._join()
+
+    def _grid(self, xw, mw) -> tuple:
+        return (xw, mw, *passes.wall_cells(np.ascontiguousarray(xw, dtype=np.float64), self.h, self.cell))
+
+    def _join(self) -> None:
+        """One set of arrays: positions, masses, the grids' origins and sizes, their cell lists (each
+        grid's `start` shifted to its place in `cand`, its candidates to their wall's place in x)."""
+        g = self._grids or [self._grid(*self._NONE)]
+        walls = np.cumsum([0] + [len(e[0]) for e in g])
+        cands = np.cumsum([0] + [len(e[5]) for e in g])
+        self.x = np.ascontiguousarray(np.concatenate([e[0] for e in g]), dtype=np.float64)
+        self.m = np.ascontiguousarray(np.concatenate([e[1] for e in g]), dtype=np.float64)
+        self.origin = np.array([e[2] for e in g])
+        self.dims = np.array([e[3] for e in g], dtype=np.int64)
+        self.offset = np.cumsum([0] + [len(e[4]) for e in g]).astype(np.int64)
+        self.start = np.concatenate([e[4] + cands[f] for f, e in enumerate(g)])
+        self.cand = np.concatenate([e[5] + walls[f] for f, e in enumerate(g)]).astype(np.int32)
+        most = max(int(np.max(np.diff(e[4]), initial=0)) for e in g)  # the longest cell list
+        self.buf = np.empty((passes.BLOCKS, 4, max(most, 1)))  # force_at's blocks, one per block of wall_forces
