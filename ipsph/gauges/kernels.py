@@ -155,6 +155,18 @@ GRID_CELL_H = 0.5  # the viscous part's own grids: cells of H/2 (a support spher
 
 
 @njit(cache=True)
+def axis_bounds(xs, a):
+    """(min, max) of the points' coordinate a; (0, 0) for no points (the gauges' grids)."""
+    if xs.shape[0] == 0:
+        return 0.0, 0.0
+    lo, hi = np.inf, -np.inf
+    for i in range(xs.shape[0]):
+        lo = min(lo, xs[i, a])
+        hi = max(hi, xs[i, a])
+    return lo, hi
+
+
+@njit(cache=True)
 def _grid(xs, cell):
     """A grid of cubic cells of size `cell` over the points xs, padded by one cell: (origin, dims,
     order, start) with the points of cell c at order[start[c]:start[c + 1]], ascending (a stable
@@ -163,12 +175,7 @@ def _grid(xs, cell):
     origin = np.zeros(3)
     dims = np.ones(3, dtype=np.int64)
     for a in range(3):
-        lo, hi = np.inf, -np.inf
-        for i in range(n):
-            lo = min(lo, xs[i, a])
-            hi = max(hi, xs[i, a])
-        if n == 0:
-            lo = hi = 0.0
+        lo, hi = axis_bounds(xs, a)
         origin[a] = lo - cell
         dims[a] = int((hi - lo) / cell) + 3
     cells = np.empty(n, dtype=np.int64)

@@ -47,12 +47,7 @@ def wall_cells(xw, h, cell):
     origin = np.zeros(3)
     dims = np.ones(3, dtype=np.int64)
     for a in range(3):
-        lo, hi = np.inf, -np.inf
-        for b in range(n):
-            lo = min(lo, xw[b, a])
-            hi = max(hi, xw[b, a])
-        if n == 0:
-            lo = hi = 0.0
+        lo, hi = kernels.axis_bounds(xw, a)
         origin[a] = lo - pad
         dims[a] = int((hi - lo + 2.0 * pad) / cell) + 1
     start = np.zeros(dims[0] * dims[1] * dims[2] + 1, dtype=np.int64)
@@ -232,4 +227,4 @@ def sample(x, v, rho, p, m, boxes, kinds, par, slot, due, h, step, fi, lvl_idx, 
 
 
 # cache=True keys a pass's cache on this file only: it also depends on the bodies it inlines
-depend_on((sample, wall_forces), (__file__, kernels.__file__, sph_kernels.__file__))
+depend_on((sample, wall_forces, wall_cells), (__file__, kernels.__file__, sph_kernels.__file__))
