@@ -136,13 +136,18 @@ class Simulation:
     # -- construction -------------------------------------------------------------------------
     @classmethod
     def from_scene(cls, scene, overrides=()) -> "Simulation":
-        """Build from a Scene, a scene file path or a scene dict; samples meshes into particles."""
+        """Build from a Scene, a scene file path or a scene dict; samples meshes into particles.
+        `overrides` (`--set` items, `key.path=value`) apply to a file or a dict; a resolved Scene
+        takes none (ValueError: change it with `dataclasses.replace`)."""
         from .scene import load_scene, scene_from_dict
+        from .scene.overrides import apply_overrides
 
         if isinstance(scene, (str, Path)):
             scene = load_scene(Path(scene), list(overrides))
         elif isinstance(scene, dict):
-            scene = scene_from_dict(scene, Path.cwd())
+            scene = scene_from_dict(apply_overrides(scene, overrides), Path.cwd())
+        elif list(overrides):
+            raise ValueError("Simulation.from_scene: overrides apply to a scene file or dict, not to a resolved Scene")
         s = sample(scene)
         return cls(scene, s.fluid_x, s.fluid_v, s.boundary_x, wall_counts=s.wall_counts)
 

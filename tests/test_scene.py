@@ -445,3 +445,20 @@ def test_each_motion_type_takes_declared_motion_keys():
 
     declared = {p.key for p in PARAMS if p.path.startswith("boundary.motion.")}
     assert all(set(keys) <= declared - {"type"} for keys in MOTION_KEYS.values()), MOTION_KEYS
+
+
+def test_from_scene_applies_overrides_to_a_dict_and_refuses_them_on_a_resolved_scene():
+    """`--set` items reach a dict scene as they reach a file; a resolved Scene cannot take them
+    (dropping them silently would run a different scene than the caller asked for)."""
+    from ipsph import Simulation
+
+    data = {
+        "simulation": {"particle_radius": 0.05, "method": "ipsph"},
+        "fluid": [{"name": "w", "box": {"min": [0, 0, 0], "max": [0.2, 0.2, 0.2]}}],
+        "boundary": [{"name": "tank", "role": "container", "box": {"min": [0, 0, 0], "max": [0.3, 0.3, 0.3]}}],
+    }
+    sim = Simulation.from_scene(data, overrides=["simulation.method=dfsph"])
+    assert sim.scene.method == Method.DFSPH
+    assert data["simulation"]["method"] == "ipsph", "the caller's dict is not changed"
+    with pytest.raises(ValueError, match="overrides"):
+        Simulation.from_scene(sim.scene, overrides=["simulation.method=pf"])
