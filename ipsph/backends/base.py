@@ -159,21 +159,20 @@ class Backend:
         (nf, cf, nb, cb of `nl`), the walls (xb, mb, vb of `walls`), the walls' pressure share
         (mirror: `wall_mirror`) or a field of `dens`. Returns what the launcher returns."""
         p = PASSES[name]
-        args = []
-        for a in p.inputs:
-            if a in given:
-                args.append(given[a])
-            elif a in LISTS:
-                args.append(getattr(nl, LISTS[a]))
-            elif a in WALLS:
-                args.append(self.wall_arrays(walls)[WALLS.index(a)])
-            elif a == "mirror":
-                args.append(self.wall_mirror)
-            elif dens is not None and hasattr(dens, a):
-                args.append(getattr(dens, a))
-            else:
-                raise TypeError(f"pass {name}: no value for its argument {a!r}")
+        args = [given[a] if a in given else self._argument(name, a, nl, dens, walls) for a in p.inputs]
         return self.launch_pass(p, nl, args)
+
+    def _argument(self, name: str, a: str, nl, dens, walls):
+        """run_pass's argument `a` of pass `name` when the caller did not give it."""
+        if a in LISTS:
+            return getattr(nl, LISTS[a])
+        if a in WALLS:
+            return self.wall_arrays(walls)[WALLS.index(a)]
+        if a == "mirror":
+            return self.wall_mirror
+        if dens is not None and hasattr(dens, a):
+            return getattr(dens, a)
+        raise TypeError(f"pass {name}: no value for its argument {a!r}")
 
     def densities(self, x, mf, walls, nl, h, rho0, out: Densities, pairs) -> Array:
         """rho, alpha, lam, err, n_nbrs, gb of `out` at x; fills the pair cache `pairs` if it has a row

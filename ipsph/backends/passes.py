@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import inspect
 from dataclasses import dataclass, field
+from functools import cached_property
 
 from . import bodies as B
 from . import field_bodies as FB
@@ -49,23 +50,23 @@ class Pass:
     count: str = ""  # CPU: the launcher returns the number of nonzero entries of this argument (the
     # CUDA backend counts them itself)
 
-    @property
-    def params(self) -> list[str]:
+    @cached_property
+    def params(self) -> tuple[str, ...]:
         """The body's parameters after the index."""
-        return list(inspect.signature(getattr(self.body, "py_func", self.body)).parameters)[1:]
+        return tuple(inspect.signature(getattr(self.body, "py_func", self.body)).parameters)[1:]
 
-    @property
+    @cached_property
     def derives(self) -> dict:
         return {k: v for k, v in {**DERIVED, **self.derived}.items() if k in self.params}
 
-    @property
+    @cached_property
     def inputs(self) -> tuple[str, ...]:
         """The launcher's arguments, in order."""
         if self.args:
             return self.args
         return tuple(p for p in self.params if p != "buf" and p not in self.derives)
 
-    @property
+    @cached_property
     def over(self) -> str:
         """The argument whose rows are the work items (the particles): `rows_of`, else the first."""
         return self.rows_of or self.inputs[0]
