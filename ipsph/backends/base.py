@@ -11,8 +11,9 @@ search is `ipsph.neighbours.search_for(backend, ...)`.
 Conventions every backend keeps: particles along the first axis; real arrays in the backend's
 precision (float64 on the CPU; float64 or float32 on CUDA); passes write index i from the work
 item of particle i only (no atomics); reductions in a fixed order, so the same inputs give the
-same bits whatever the thread count. Pass arguments mirror the launchers in
-`cpu_passes`; `nl` is the current `NeighbourLists`, `walls` the `Boundary`, `dens` a `Densities`.
+same bits whatever the thread count. The per-particle passes are the rows of `passes.PASSES`: the
+methods below bind a row's arguments by name (`run_pass`) and a backend only launches it
+(`launch_pass`); `nl` is the current `NeighbourLists`, `walls` the `Boundary`, `dens` a `Densities`.
 """
 
 from __future__ import annotations
@@ -20,7 +21,12 @@ from __future__ import annotations
 from dataclasses import dataclass, fields
 from typing import Any
 
+from .passes import PASSES, Pass
+
 Array = Any  # a backend array (numpy on the CPU backend)
+
+LISTS = {"nf": "fluid", "cf": "fluid_count", "nb": "boundary", "cb": "boundary_count"}  # NeighbourLists
+WALLS = ("xb", "mb", "vb")  # Backend.wall_arrays
 
 
 @dataclass
@@ -65,7 +71,8 @@ class Densities:
 
 
 class Backend:
-    """The interface (every method raises here; `CPUBackend` implements it)."""
+    """The interface: the per-particle passes are written here, once, over `launch_pass` and
+    `wall_arrays`; everything else raises here (`CPUBackend` implements it)."""
 
     # The walls' share in every pressure term, as a multiple of the particle's own (bodies.stiffness_at):
     # 1 carries the particle's pressure once (Akinci's walls), 2 mirrors it onto the wall. The wall
@@ -138,48 +145,94 @@ class Backend:
     def stiffness_pressure(self, out, k, rho, add: bool = False) -> None:
         raise NotImplementedError
 
-    # -- per-particle passes (bodies.*_at) ----------------------------------------------------------
-    def densities(self, x, mf, walls, nl, h, rho0, out: Densities, pairs) -> Array:
+    # -- per-particle passes (the table `passes.PASSES`, each launched by `run_pass`) ---------------
+    def launch_pass(self, p: Pass, nl, args: list):
+        """Run pass `p`'s launcher on `args` (in `p.inputs` order); `nl` gives the lists' strides."""
         raise NotImplementedError
+
+    def wall_arrays(self, walls) -> tuple:
+        """(xb, mb, vb): the walls' positions, masses and velocities as this backend's arrays."""
+        raise NotImplementedError
+
+    def run_pass(self, name: str, nl=None, dens: Densities | None = None, walls=None, **given):
+        """Launch the table's pass `name`, each argument by its name: from `given`, else the lists
+        (nf, cf, nb, cb of `nl`), the walls (xb, mb, vb of `walls`), the walls' pressure share
+        (mirror: `wall_mirror`) or a field of `dens`. Returns what the launcher returns."""
+        p = PASSES[name]
+        args = [given[a] if a in given else self._argument(name, a, nl, dens, walls) for a in p.inputs]
+        return self.launch_pass(p, nl, args)
+
+    def _argument(self, name: str, a: str, nl, dens, walls):
+        """run_pass's argument `a` of pass `name` when the caller did not give it."""
+        if a in LISTS:
+            return getattr(nl, LISTS[a])
+        if a in WALLS:
+            return self.wall_arrays(walls)[WALLS.index(a)]
+        if a == "mirror":
+            return self.wall_mirror
+        if dens is not None and hasattr(dens, a):
+            return getattr(dens, a)
+        raise TypeError(f"pass {name}: no value for its argument {a!r}")
+
+    def densities(self, x, mf, walls, nl, h, rho0, out: Densities, pairs) -> Array:
+        """rho, alpha, lam, err, n_nbrs, gb of `out` at x; fills the pair cache `pairs` if it has a row
+        per particle. Field walls: their reading (`wall_field`) first, then the density pass that adds it."""
+        named = {"x": x, "mf": mf, "h": h, "rho0": rho0, "pair_grad": pairs}
+        if walls.field is None:
+            self.run_pass("density_factor_lambda", nl, out, walls, **named)
+        else:
+            self.wall_field(x, walls.field, rho0, out)
+            self.run_pass("field_density_factor_lambda", nl, out, walls, **named)
+        return pairs
 
     def divergence_residual(self, x, v, mf, dens, nl, pairs, h, dt, drho, k) -> None:
-        raise NotImplementedError
+        self.run_pass("divergence_residual", nl, dens, x=x, v=v, mf=mf, pair_grad=pairs, h=h, dt=dt, drho=drho, k=k)
 
     def density_residual(self, x, v, mf, dens, nl, pairs, h, rho0, dt, err, k) -> None:
-        raise NotImplementedError
+        named = {"x": x, "v": v, "mf": mf, "pair_grad": pairs, "h": h, "rho0": rho0, "dt": dt, "rho_err": err, "k": k}
+        self.run_pass("density_residual", nl, dens, **named)
 
     def apply_stiffness(self, x, mf, dens, nl, pairs, h, k, dt, v, k_total) -> None:
-        raise NotImplementedError
+        self.run_pass("apply_stiffness", nl, dens, x=x, mf=mf, pair_grad=pairs, h=h, k=k, dt=dt, v=v, k_total=k_total)
 
     def viscosity(self, x, v, mf, dens, lam, nl, h, zeta, nu_dt, v_out, drho, disp, pairs) -> Array:
-        raise NotImplementedError
+        named = {"x": x, "v": v, "mf": mf, "lam": lam, "h": h, "zeta": zeta, "nu_dt": nu_dt}
+        self.run_pass("xsph", nl, dens, **named, v_out=v_out, drho=drho, disp=disp, pair_grad=pairs)
+        return pairs
 
     def pf_global(self, x, s, mf, dens, nl, h, rho0, a, x_out, lam_sum) -> None:
-        raise NotImplementedError
+        self.run_pass("pf_global", nl, dens, x=x, s=s, mf=mf, h=h, rho0=rho0, a=a, x_out=x_out, lam_sum=lam_sum)
 
     def viscous_setup(self, x, v, mf, dens, walls, nl, h, rho0, nu_dt, wall_factor, full, b, diag, wmat) -> None:
-        raise NotImplementedError  # the implicit viscosity's b, Jacobi diagonal, wall blocks (viscous_bodies.viscous_setup_at)
+        """The implicit viscosity's b, Jacobi diagonal, wall blocks (viscous_bodies.viscous_setup_at)."""
+        named = {"x": x, "v": v, "mf": mf, "h": h, "rho0": rho0, "nu_dt": nu_dt, "wall_factor": wall_factor}
+        self.run_pass("viscous_setup", nl, dens, walls, **named, full=full, b=b, diag=diag, wmat=wmat)
 
     def viscous_apply(self, x, p, mf, dens, nl, h, nu_dt, wmat, out, pdot) -> None:
-        raise NotImplementedError  # out = A p, pdot_i = V_i p_i . out_i (bodies.viscous_apply_at)
+        """out = A p, pdot_i = V_i p_i . out_i (viscous_bodies.viscous_apply_at)."""
+        self.run_pass("viscous_apply", nl, dens, x=x, p=p, mf=mf, h=h, nu_dt=nu_dt, wmat=wmat, out=out, pdot=pdot)
 
     def cg_precondition(self, r, diag, rho, mf, z, rz, rr) -> None:
-        raise NotImplementedError  # z = r / diag, rz_i = V_i r_i . z_i, rr_i = V_i |r_i|^2 (element-wise)
+        """z = r / diag, rz_i = V_i r_i . z_i, rr_i = V_i |r_i|^2 (element-wise)."""
+        self.run_pass("cg_precondition", r=r, diag=diag, rho=rho, mf=mf, z=z, rz=rz, rr=rr)
 
     def wall_field(self, x, field, rho0, out: Densities) -> None:
-        """Field walls: out.wb, out.gw and out.gvb at x (`field_bodies.wall_field_at`)."""
-        raise NotImplementedError
+        """Field walls: out.wb, out.gw, out.gvb and out.ws at x (`field_bodies.wall_field_at`)."""
+        self.run_pass("wall_field", dens=out, x=x, h=field.h, rho0=rho0, wall=field.wall, objects=field.arrays())
 
     def wall_pressure(self, dens: Densities, g, rho0: float, dt: float, v) -> None:
         """Field walls: the hydrostatic part of the mirrored wall pressure on v (`field_bodies.wall_pressure_at`)."""
-        raise NotImplementedError
+        self.run_pass("wall_pressure", dens=dens, g=g, rho0=rho0, dt=dt, v=v)
 
     def wall_project(self, x, v, field, moved) -> int:
-        """Field walls: keep x at least field.phi_min outside every surface (`field_bodies.wall_project_at`)."""
-        raise NotImplementedError
+        """Field walls: keep x at least field.phi_min outside every surface (`field_bodies.wall_project_at`);
+        returns how many particles moved."""
+        named = {"x": x, "v": v, "h": field.h, "phi_min": field.phi_min, "objects": field.arrays(), "moved": moved}
+        return int(self.run_pass("wall_project", **named))
 
     def wall_rate(self, x, walls, nl, h, dens) -> None:
-        raise NotImplementedError  # dens.gvb (walls.v: moving walls)
+        """dens.gvb: the moving walls' part of D rho/Dt (walls.v)."""
+        self.run_pass("wall_rate", nl, dens, walls, x=x, h=h)
 
     def advance(self, x, v, dt, g, x_old) -> None:
         raise NotImplementedError

@@ -1,4 +1,5 @@
-"""The CPU backend: numpy arrays, Numba `prange` launchers (`cpu_passes`), serial reductions."""
+"""The CPU backend: numpy arrays, Numba `prange` launchers (`cpu_passes`, `cpu_field`: built from the
+pass table, `passes`), serial reductions."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ from ..errors import ConfigError
 from ..params import PRECISIONS
 from . import cpu_field as F
 from . import cpu_passes as P
-from .base import Backend, Densities
+from .base import Backend
 
 
 class CPUBackend(Backend):
@@ -95,95 +96,12 @@ class CPUBackend(Backend):
         else:
             out[:] = k * rho * rho
 
-    # -- per-particle passes ------------------------------------------------------------------------
-    def densities(self, x, mf, walls, nl, h, rho0, out: Densities, pairs):
-        args = (x, mf, walls.x, walls.m, nl.fluid, nl.fluid_count, nl.boundary, nl.boundary_count, h, rho0)
-        dens = (out.rho, out.alpha, out.lam, out.err, out.n_nbrs, out.gb, pairs)
-        if walls.field is None:
-            P.density_factor_lambda(*args, *dens)
-        else:  # field walls: their reading first, then the density pass that adds it (its own launcher)
-            self.wall_field(x, walls.field, rho0, out)
-            F.field_density_factor_lambda(*args, *dens, out.wb, out.gw, self.wall_mirror)
-        return pairs
+    # -- per-particle passes (the table's launchers, built in cpu_passes and cpu_field) --------------
+    def launch_pass(self, p, nl, args):
+        return getattr(F if p.home == "cpu_field" else P, p.name)(*args)
 
-    def wall_field(self, x, field, rho0, out: Densities) -> None:
-        F.wall_field(x, field.h, rho0, field.wall, field.arrays(), out.wb, out.gw, out.gvb, out.ws)
-
-    def wall_pressure(self, dens: Densities, g, rho0, dt, v) -> None:
-        F.wall_pressure(dens.gw, dens.ws, g, rho0, dt, v)
-
-    def wall_project(self, x, v, field, moved) -> int:
-        return int(F.wall_project(x, v, field.h, field.phi_min, field.arrays(), moved))
-
-    def divergence_residual(self, x, v, mf, dens, nl, pairs, h, dt, drho, k):
-        P.divergence_residual(
-            x, v, mf, dens.gb, dens.gvb, nl.fluid, nl.fluid_count, pairs, h, dens.alpha, dens.n_nbrs, dt, drho, k
-        )
-
-    def density_residual(self, x, v, mf, dens, nl, pairs, h, rho0, dt, err, k):
-        P.density_residual(
-            x, v, mf, dens.gb, dens.gvb, nl.fluid, nl.fluid_count, pairs, h, dens.rho, dens.alpha, rho0, dt, err, k
-        )
-
-    def apply_stiffness(self, x, mf, dens, nl, pairs, h, k, dt, v, k_total):
-        P.apply_stiffness(x, mf, dens.gb, nl.fluid, nl.fluid_count, pairs, h, k, dt, v, k_total, self.wall_mirror)
-
-    def viscosity(self, x, v, mf, dens, lam, nl, h, zeta, nu_dt, v_out, drho, disp, pairs):
-        P.xsph(
-            x,
-            v,
-            mf,
-            dens.rho,
-            dens.gb,
-            dens.gvb,
-            lam,
-            nl.fluid,
-            nl.fluid_count,
-            h,
-            zeta,
-            nu_dt,
-            v_out,
-            drho,
-            disp,
-            pairs,
-            self.wall_mirror,
-        )
-        return pairs
-
-    def viscous_setup(self, x, v, mf, dens, walls, nl, h, rho0, nu_dt, wall_factor, full, b, diag, wmat):
-        P.viscous_setup(
-            x,
-            v,
-            mf,
-            dens.rho,
-            walls.x,
-            walls.m,
-            walls.v,
-            nl.fluid,
-            nl.fluid_count,
-            nl.boundary,
-            nl.boundary_count,
-            h,
-            rho0,
-            nu_dt,
-            wall_factor,
-            full,
-            b,
-            diag,
-            wmat,
-        )
-
-    def viscous_apply(self, x, p, mf, dens, nl, h, nu_dt, wmat, out, pdot):
-        P.viscous_apply(x, p, mf, dens.rho, nl.fluid, nl.fluid_count, h, nu_dt, wmat, out, pdot)
-
-    def cg_precondition(self, r, diag, rho, mf, z, rz, rr):
-        P.cg_precondition(r, diag, rho, mf, z, rz, rr)
-
-    def wall_rate(self, x, walls, nl, h, dens):
-        P.wall_rate(x, walls.x, walls.m, walls.v, nl.boundary, nl.boundary_count, h, dens.gvb)
-
-    def pf_global(self, x, s, mf, dens, nl, h, rho0, a, x_out, lam_sum):
-        P.pf_global(x, s, mf, dens.gb, nl.fluid, nl.fluid_count, h, rho0, dens.lam, a, x_out, lam_sum, self.wall_mirror)
+    def wall_arrays(self, walls):
+        return walls.x, walls.m, walls.v
 
     def advance(self, x, v, dt, g, x_old):
         P.advance(x, v, dt, g, x_old)

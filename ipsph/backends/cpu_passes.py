@@ -1,11 +1,11 @@
-"""The CPU launchers: `prange` over blocks of particles, each block with one scratch buffer,
-calling the per-particle bodies of `bodies` for every particle in it.
+"""The CPU launchers: built from the pass table (`passes.PASSES`), each a `prange` over blocks of
+particles, each block with one scratch buffer, calling the pass's body for every particle in it.
 
 Particles are processed in CHUNKS blocks rather than one buffer per thread: reading a thread id
 would keep Numba from caching the compiled pass. Each particle is handled by one thread from
 start to end and writes index i only, so the results do not depend on the thread count.
-Arguments follow one order: positions and per-particle inputs, the lists (nf, cf: fluid
-indices and counts; nb, cb: walls), scalars, outputs last.
+`launchers(module, file)` compiles a home module's rows (`Pass.home`: this one or `cpu_field`)
+from `passes.source` and binds them there by name, cached on disk like hand-written ones.
 
 Also here: the serial reductions (fixed order: the same bits whatever the thread count) and the
 element-wise updates a step needs (one loop each instead of numpy temporaries, whose broadcast of a
@@ -15,27 +15,11 @@ element-wise updates a step needs (one loop each instead of numpy temporaries, w
 import numpy as np
 from numba import njit, prange
 
-from . import bodies, kernels, viscous_bodies
+from . import field_grid, kernels, wall_field
 from ._cache import depend_on
-from .bodies import (
-    DENSITY_ROWS,
-    FAST,
-    PF_GLOBAL_ROWS,
-    RATE_ROWS,
-    STIFFNESS_ROWS,
-    VISCOSITY_ROWS,
-    VISCOUS_APPLY_ROWS,
-    VISCOUS_SETUP_ROWS,
-    WALL_RATE_ROWS,
-    density_at,
-    density_residual_at,
-    divergence_residual_at,
-    pf_global_at,
-    stiffness_at,
-    wall_rate_at,
-)
+from .kernels import FASTMATH as FAST
 from .kernels import w
-from .viscous_bodies import cg_precondition_at, viscosity_at, viscous_apply_at, viscous_setup_at
+from .passes import PASSES, SOURCES, source, wrapper_source
 
 CHUNKS = 64  # blocks of particles per pass, each with its own scratch buffer
 
@@ -68,197 +52,62 @@ def _chunk(c, n_chunks, n):
     return c * n // n_chunks, (c + 1) * n // n_chunks
 
 
-# -- per-particle passes ---------------------------------------------------------------------------
-@njit(parallel=True, fastmath=FAST, cache=True)
-def density_factor_lambda(x, mf, xb, mb, nf, cf, nb, cb, h, rho0, rho, alpha, lam, err, n_nbrs, gb, pair_grad):
-    """bodies.density_at for every particle; fills the pair cache if it has a row per particle."""
-    fill = pair_grad.shape[0] == x.shape[0]
-    w0 = w(0.0, h)
-    bufs = _buffers(DENSITY_ROWS, nf, nb)
-    for c in prange(bufs.shape[0]):
-        lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
-        for i in range(lo, hi):
-            density_at(
-                i,
-                x,
-                mf,
-                xb,
-                mb,
-                nf,
-                cf,
-                nb,
-                cb,
-                h,
-                rho0,
-                w0,
-                fill,
-                bufs[c],
-                rho,
-                alpha,
-                lam,
-                err,
-                n_nbrs,
-                gb,
-                pair_grad,
-            )
+# -- the per-particle passes: generated from the pass table ------------------------------------------
+_SCRATCH = {
+    "fluid": "_fluid_buffers({rows}, nf)",
+    "walls": "_fluid_buffers({rows}, nb)",
+    "all": "_buffers({rows}, nf, nb)",
+}
+_LOOPS = {
+    "chunks": [
+        "for c in prange(bufs.shape[0]):",
+        "    lo, hi = _chunk(c, bufs.shape[0], {n})",
+        "    for i in range(lo, hi):",
+    ],
+    "each": ["for i in prange({n}):"],
+    "serial": ["for i in range({n}):"],
+}
+_OPTIONS = {"chunks": {"parallel": True, "fastmath": FAST}, "each": {"parallel": True, "fastmath": FAST}, "serial": {}}
+_HELPERS = {
+    "np": np,
+    "prange": prange,
+    "w": w,
+    "_chunk": _chunk,
+    "_buffers": _buffers,
+    "_fluid_buffers": _fluid_buffers,
+}
 
 
-@njit(parallel=True, fastmath=FAST, cache=True)
-def divergence_residual(x, v, mf, gb, gvb, nf, cf, pair_grad, h, alpha, n_nbrs, dt, drho, k):
-    """bodies.divergence_residual_at for every particle."""
-    bufs = _fluid_buffers(RATE_ROWS, nf)
-    for c in prange(bufs.shape[0]):
-        lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
-        for i in range(lo, hi):
-            divergence_residual_at(
-                i,
-                x,
-                v,
-                mf,
-                gb,
-                gvb,
-                nf,
-                cf,
-                pair_grad,
-                pair_grad.shape[0] == x.shape[0],
-                h,
-                alpha,
-                n_nbrs,
-                dt,
-                bufs[c],
-                drho,
-                k,
-            )
+def _compile(text: str, module: str, file: str, names: dict, name: str, options: dict):
+    """The @njit(cache=True, **options) function `name` of the source `text`, compiled as if it stood
+    in `file` (the module `module`): numba's disk cache keys it there."""
+    namespace = {"__name__": module, **_HELPERS, **names}
+    exec(compile(text, file, "exec"), namespace)
+    return njit(cache=True, **options)(namespace[name])
 
 
-@njit(parallel=True, fastmath=FAST, cache=True)
-def density_residual(x, v, mf, gb, gvb, nf, cf, pair_grad, h, rho, alpha, rho0, dt, rho_err, k):
-    """bodies.density_residual_at for every particle."""
-    bufs = _fluid_buffers(RATE_ROWS, nf)
-    for c in prange(bufs.shape[0]):
-        lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
-        for i in range(lo, hi):
-            density_residual_at(
-                i,
-                x,
-                v,
-                mf,
-                gb,
-                gvb,
-                nf,
-                cf,
-                pair_grad,
-                pair_grad.shape[0] == x.shape[0],
-                h,
-                rho,
-                alpha,
-                rho0,
-                dt,
-                bufs[c],
-                rho_err,
-                k,
-            )
+def launchers(module: str, file: str) -> dict:
+    """The CPU launchers of the table's passes that live in `module` (`passes.Pass.home`), by name,
+    with the wrappers some call their bodies through (each `Pass.wrapper`)."""
+    out = {}
+    for p in PASSES.values():
+        if f"{__package__}.{p.home}" != module:
+            continue
+        names = {"body": p.body}
+        if p.wrapper:
+            one = _compile(wrapper_source(p), module, file, names, p.wrapper, {"fastmath": FAST})
+            out[p.wrapper] = names["one"] = one
+        scratch = f"bufs = {_SCRATCH[p.stride].format(rows=p.rows)}" if p.rows else ""
+        tail = [f"return np.count_nonzero({p.count})"] if p.count else []
+        text = source(p, scratch, _LOOPS[p.cpu], "bufs[c]", "one" if p.wrapper else "body", tail)
+        out[p.name] = _compile(text, module, file, names, p.name, _OPTIONS[p.cpu])
+    # cache=True keys a launcher's cache on its file only: it also depends on the table and the bodies
+    depend_on(out.values(), (file, __file__, *SOURCES, *(m.__file__ for m in _INLINED)))
+    return out
 
 
-@njit(parallel=True, fastmath=FAST, cache=True)
-def apply_stiffness(x, mf, gb, nf, cf, pair_grad, h, k, dt, v, k_total, mirror):
-    """bodies.stiffness_at for every particle (in place on v, k_total)."""
-    bufs = _fluid_buffers(STIFFNESS_ROWS, nf)
-    for c in prange(bufs.shape[0]):
-        lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
-        for i in range(lo, hi):
-            stiffness_at(
-                i, x, mf, gb, nf, cf, pair_grad, pair_grad.shape[0] == x.shape[0], h, k, dt, bufs[c], v, k_total, mirror
-            )
-
-
-@njit(parallel=True, fastmath=FAST, cache=True)
-def xsph(x, v, mf, rho, gb, gvb, lam, nf, cf, h, zeta, nu_dt, v_out, drho, disp, pair_grad, mirror):
-    """bodies.viscosity_at for every particle; the PF displacement only if `disp` has a row per
-    particle, the pair cache only if `pair_grad` has."""
-    with_disp = disp.shape[0] == x.shape[0]
-    fill = pair_grad.shape[0] == x.shape[0]
-    eps = 0.01 * h * h
-    standard = nu_dt > 0.0
-    bufs = _fluid_buffers(VISCOSITY_ROWS, nf)
-    for c in prange(bufs.shape[0]):
-        lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
-        for i in range(lo, hi):
-            viscosity_at(
-                i,
-                x,
-                v,
-                mf,
-                rho,
-                gb,
-                gvb,
-                lam,
-                nf,
-                cf,
-                h,
-                zeta,
-                nu_dt,
-                eps,
-                standard,
-                with_disp,
-                fill,
-                bufs[c],
-                v_out,
-                drho,
-                disp,
-                pair_grad,
-                mirror,
-            )
-
-
-@njit(parallel=True, fastmath=FAST, cache=True)
-def pf_global(x, s, mf, gb, nf, cf, h, rho0, lam, a, x_out, lam_sum, mirror):
-    """bodies.pf_global_at for every particle."""
-    bufs = _fluid_buffers(PF_GLOBAL_ROWS, nf)
-    for c in prange(bufs.shape[0]):
-        lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
-        for k in range(lo, hi):
-            pf_global_at(k, x, s, mf, gb, nf, cf, h, rho0, lam, a, bufs[c], x_out, lam_sum, mirror)
-
-
-@njit(parallel=True, fastmath=FAST, cache=True)
-def wall_rate(x, xb, mb, vb, nb, cb, h, gvb):
-    """bodies.wall_rate_at for every particle (moving walls only)."""
-    bufs = _fluid_buffers(WALL_RATE_ROWS, nb)
-    for c in prange(bufs.shape[0]):
-        lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
-        for i in range(lo, hi):
-            wall_rate_at(i, x, xb, mb, vb, nb, cb, h, bufs[c], gvb)
-
-
-@njit(parallel=True, fastmath=FAST, cache=True)
-def viscous_setup(x, v, mf, rho, xb, mb, vb, nf, cf, nb, cb, h, rho0, nu_dt, wall_factor, full, b, diag, wmat):
-    """viscous_bodies.viscous_setup_at for every particle: the implicit viscosity's right-hand side,
-    Jacobi diagonal and wall blocks."""
-    bufs = _buffers(VISCOUS_SETUP_ROWS, nf, nb)
-    for c in prange(bufs.shape[0]):
-        lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
-        for i in range(lo, hi):
-            viscous_setup_at(
-                i, x, v, mf, rho, xb, mb, vb, nf, cf, nb, cb, h, rho0, nu_dt, wall_factor, full, bufs[c], b, diag, wmat
-            )
-
-
-@njit(parallel=True, fastmath=FAST, cache=True)
-def viscous_apply(x, p, mf, rho, nf, cf, h, nu_dt, wmat, out, pdot):
-    """viscous_bodies.viscous_apply_at for every particle: out = A p, pdot_i = V_i p_i . out_i."""
-    bufs = _fluid_buffers(VISCOUS_APPLY_ROWS, nf)
-    for c in prange(bufs.shape[0]):
-        lo, hi = _chunk(c, bufs.shape[0], x.shape[0])
-        for i in range(lo, hi):
-            viscous_apply_at(i, x, p, mf, rho, nf, cf, h, nu_dt, wmat, bufs[c], out, pdot)
-
-
-@njit(cache=True)
-def cg_precondition(r, diag, rho, mf, z, rz, rr):
-    """viscous_bodies.cg_precondition_at for every particle (element-wise)."""
-    for i in range(r.shape[0]):
-        cg_precondition_at(i, r, diag, rho, mf, z, rz, rr)
+_INLINED = (kernels, wall_field, field_grid)
+globals().update(launchers(__name__, __file__))
 
 
 # -- serial reductions ------------------------------------------------------------------------------
@@ -341,9 +190,3 @@ def warm_stiffness(k_total, scale, rate, n_nbrs, min_nbrs, warm):
         on = (rate[i] > 0.0 and n_nbrs[i] >= min_nbrs) if masked else True
         warm[i] = 0.5 * min(k_total[i] * scale, 0.5) if on else 0.0
         k_total[i] = 0.0
-
-
-# -- cache=True keys a pass's cache on this file only: it also depends on the bodies it inlines
-_PASSES = (density_factor_lambda, divergence_residual, density_residual, apply_stiffness, xsph, pf_global, wall_rate)
-_INLINED = (bodies, viscous_bodies, kernels)
-depend_on((*_PASSES, viscous_setup, viscous_apply, cg_precondition), (__file__, *(m.__file__ for m in _INLINED)))

@@ -20,7 +20,7 @@ import numpy as np
 from ..errors import ConfigError
 from ..params import PRECISIONS
 from . import _cuda
-from .base import Backend, Densities
+from .base import Backend
 
 
 class CUDABackend(Backend):
@@ -171,188 +171,18 @@ class CUDABackend(Backend):
     def stiffness_pressure(self, out, k, rho, add=False):
         self._launch(self.P.stiffness_pressure, out.shape[0], out, k, rho, add)
 
-    # -- per-particle passes (cuda_passes: the argument order of cpu_passes) -----------------------
-    def _passes(self, nl):
-        return self.P.passes(nl.fluid.shape[1], nl.boundary.shape[1])
+    # -- per-particle passes (the table's kernels, built in cuda_passes) -------------------------------
+    def launch_pass(self, p, nl, args):
+        kernel = self.P.passes(nl.fluid.shape[1], nl.boundary.shape[1])[p.name] if p.rows else getattr(self.P, p.name)
+        self._launch(kernel, args[p.inputs.index(p.over)].shape[0], *args)
 
-    def densities(self, x, mf, walls, nl, h, rho0, out: Densities, pairs):
-        xb, mb, _ = self._wall_arrays(walls)
-        self._launch(
-            self._passes(nl)["density_factor_lambda"],
-            x.shape[0],
-            x,
-            mf,
-            xb,
-            mb,
-            nl.fluid,
-            nl.fluid_count,
-            nl.boundary,
-            nl.boundary_count,
-            h,
-            rho0,
-            out.rho,
-            out.alpha,
-            out.lam,
-            out.err,
-            out.n_nbrs,
-            out.gb,
-            pairs,
-        )
-        return pairs
+    def wall_arrays(self, walls):
+        return self._wall_arrays(walls)
 
-    def divergence_residual(self, x, v, mf, dens, nl, pairs, h, dt, drho, k):
-        self._launch(
-            self._passes(nl)["divergence_residual"],
-            x.shape[0],
-            x,
-            v,
-            mf,
-            dens.gb,
-            dens.gvb,
-            nl.fluid,
-            nl.fluid_count,
-            pairs,
-            h,
-            dens.alpha,
-            dens.n_nbrs,
-            dt,
-            drho,
-            k,
-        )
+    def _cpu_only(self, *args, **kwargs):
+        raise NotImplementedError("field walls run on the CPU backend only (boundary.field_walls refuses others)")
 
-    def density_residual(self, x, v, mf, dens, nl, pairs, h, rho0, dt, err, k):
-        self._launch(
-            self._passes(nl)["density_residual"],
-            x.shape[0],
-            x,
-            v,
-            mf,
-            dens.gb,
-            dens.gvb,
-            nl.fluid,
-            nl.fluid_count,
-            pairs,
-            h,
-            dens.rho,
-            dens.alpha,
-            rho0,
-            dt,
-            err,
-            k,
-        )
-
-    def apply_stiffness(self, x, mf, dens, nl, pairs, h, k, dt, v, k_total):
-        self._launch(
-            self._passes(nl)["apply_stiffness"],
-            x.shape[0],
-            x,
-            mf,
-            dens.gb,
-            nl.fluid,
-            nl.fluid_count,
-            pairs,
-            h,
-            k,
-            dt,
-            v,
-            k_total,
-            self.wall_mirror,
-        )
-
-    def viscosity(self, x, v, mf, dens, lam, nl, h, zeta, nu_dt, v_out, drho, disp, pairs):
-        self._launch(
-            self._passes(nl)["xsph"],
-            x.shape[0],
-            x,
-            v,
-            mf,
-            dens.rho,
-            dens.gb,
-            dens.gvb,
-            lam,
-            nl.fluid,
-            nl.fluid_count,
-            h,
-            zeta,
-            nu_dt,
-            v_out,
-            drho,
-            disp,
-            pairs,
-            self.wall_mirror,
-        )
-        return pairs
-
-    def pf_global(self, x, s, mf, dens, nl, h, rho0, a, x_out, lam_sum):
-        self._launch(
-            self._passes(nl)["pf_global"],
-            x.shape[0],
-            x,
-            s,
-            mf,
-            dens.gb,
-            nl.fluid,
-            nl.fluid_count,
-            h,
-            rho0,
-            dens.lam,
-            a,
-            x_out,
-            lam_sum,
-            self.wall_mirror,
-        )
-
-    def wall_rate(self, x, walls, nl, h, dens):
-        xb, mb, vb = self._wall_arrays(walls)
-        self._launch(
-            self._passes(nl)["wall_rate"], x.shape[0], x, xb, mb, vb, nl.boundary, nl.boundary_count, h, dens.gvb
-        )
-
-    def viscous_setup(self, x, v, mf, dens, walls, nl, h, rho0, nu_dt, wall_factor, full, b, diag, wmat):
-        xb, mb, vb = self._wall_arrays(walls)
-        self._launch(
-            self._passes(nl)["viscous_setup"],
-            x.shape[0],
-            x,
-            v,
-            mf,
-            dens.rho,
-            xb,
-            mb,
-            vb,
-            nl.fluid,
-            nl.fluid_count,
-            nl.boundary,
-            nl.boundary_count,
-            h,
-            rho0,
-            nu_dt,
-            wall_factor,
-            full,
-            b,
-            diag,
-            wmat,
-        )
-
-    def viscous_apply(self, x, p, mf, dens, nl, h, nu_dt, wmat, out, pdot):
-        self._launch(
-            self._passes(nl)["viscous_apply"],
-            x.shape[0],
-            x,
-            p,
-            mf,
-            dens.rho,
-            nl.fluid,
-            nl.fluid_count,
-            h,
-            nu_dt,
-            wmat,
-            out,
-            pdot,
-        )
-
-    def cg_precondition(self, r, diag, rho, mf, z, rz, rr):
-        self._launch(self.P.cg_precondition, r.shape[0], r, diag, rho, mf, z, rz, rr)
+    wall_field = wall_pressure = wall_project = _cpu_only
 
     def advance(self, x, v, dt, g, x_old):
         self._launch(self.P.advance, x.shape[0], x, v, dt, g, x_old)
