@@ -2,6 +2,8 @@
 density pass, no wall particles, the lattice at rest reading rho0, the position projection, and
 what the model refuses. The maths of the field itself is tests/test_wall_field.py."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -185,3 +187,124 @@ def test_every_wall_model_carries_the_pressure_once():
     )
     Simulation(akinci, *sample_scene(akinci)[:3], backend=be, settle=False)
     assert be.wall_mirror == 1.0
+
+
+# The support of a flat face is c = Lambda / (1 - Lambda) = e^mu - 1 across the face's tangent plane
+# (method.md section 11); checked to rounding against the reading of the same point.
+SUPPORT_TOL = 1e-12
+
+
+@pytest.mark.slow  # compiles the field passes
+def test_the_walls_support_runs_along_their_faces():
+    """A container's support is its faces' c_f (I - n_f n_f): on the floor diag(c, 0, c), at an edge
+    the two faces' sum; an obstacle's (here a turned box) c (I - n n) with n its distance's gradient;
+    nothing beyond the walls' reach."""
+    scene = tank()
+    walls = FieldWalls(scene)
+    floor, edge, far = [0.28, D / 2, 0.28], [D / 2, D / 2, 0.28], [0.28, 0.3, 0.28]
+    m = walls.support(np.array([floor, edge, far]))
+    lam = walls.reading(np.array([floor]))[0][0]
+    c = lam / (1.0 - lam)
+    assert 0.1 < c < 0.3  # tau0 / (1 - tau0) = 0.176 at d/2
+    np.testing.assert_allclose(m[0], [c, 0, c, 0, 0, 0], atol=SUPPORT_TOL)
+    np.testing.assert_allclose(m[1], [c, c, 2 * c, 0, 0, 0], atol=SUPPORT_TOL)  # floor (y) and x = 0 faces
+    assert np.all(m[2] == 0.0)
+    # the same container turned about its centre: its support turns with it, R M R^T
+    t = np.radians(30.0)
+    rot = np.array([[np.cos(t), -np.sin(t), 0], [np.sin(t), np.cos(t), 0], [0, 0, 1]])
+    centre = walls.pos[0].copy()
+    walls.rot[0] = rot
+    mt = walls.support((np.array([floor, edge]) - centre) @ rot.T + centre)
+    for mi, ti in zip(m[:2], mt):
+        full = np.array([[mi[0], mi[3], mi[4]], [mi[3], mi[1], mi[5]], [mi[4], mi[5], mi[2]]])
+        turned = rot @ full @ rot.T
+        np.testing.assert_allclose(ti, turned[[0, 1, 2, 0, 0, 1], [0, 1, 2, 1, 2, 2]], atol=SUPPORT_TOL)
+    # an obstacle reads its one signed distance: a box turned 30 degrees about z, beside its faces
+    turned = scene_from_dict(
+        {
+            "simulation": {"particle_radius": R, "boundary_model": "field"},
+            "fluid": [{"name": "c", "box": {"min": [0.6, 0, 0], "max": [0.9, 0.3, 0.3]}}],
+            "boundary": [
+                {
+                    "name": "b",
+                    "role": "obstacle",
+                    "box": {"min": [-0.2, -0.2, -0.2], "max": [0.2, 0.2, 0.2]},
+                }
+            ],
+        },
+        name="turned",
+    )
+    bw = FieldWalls(turned)
+    t = np.radians(30.0)
+    rot = np.array([[np.cos(t), -np.sin(t), 0], [np.sin(t), np.cos(t), 0], [0, 0, 1]])
+    bw.rot[0] = rot  # (a scene's box is axis-aligned; a turned mesh box is placed the same way)
+    normals = rot @ np.eye(3)  # the faces' normals +x, +y, +z in world axes (columns)
+    p = (0.2 + D / 2) * normals.T
+    lam = bw.reading(p)[0]
+    c = lam / (1.0 - lam)
+    for mi, ni, ci in zip(bw.support(p), normals.T, c):
+        mat = np.array([[mi[0], mi[3], mi[4]], [mi[3], mi[1], mi[5]], [mi[4], mi[5], mi[2]]])
+        np.testing.assert_allclose(mat, ci * (np.eye(3) - np.outer(ni, ni)), atol=SUPPORT_TOL)
+        assert ci > 0.1
+
+
+# Momentum of a pressure update: each pair's force is exact and opposite in exact arithmetic, so the
+# sum over the fluid is a cancellation of terms of size |dv| (rounding: ~1e-16 relative per term).
+MOMENTUM_TOL = 1e-12
+
+
+@pytest.mark.slow  # compiles the field passes
+def test_the_support_in_a_pressure_update_conserves_momentum():
+    """v_i -= dt sum_j mf (k_i + k_j) (I + (M_i + M_j)/2) grad W_ij: with the walls' own term gb set
+    aside, the fluid's momentum does not change (the pair term is antisymmetric), with the pair cache
+    and without; and the support changes the update near the walls only."""
+    scene = tank()
+    sim = Simulation(scene, *sample_scene(scene)[:3], settle=False)
+    be, meth = sim.be, sim.method
+    n, mf, h, dt = sim.n_fluid, meth.fluid.mf, meth.fluid.h, 0.004
+    x, nl = meth.state.x, meth.lists
+    dens = meth.data.dens
+    pairs = be.densities(x, mf, sim.boundary, nl, h, meth.fluid.rho0, dens, be.pair_buffer(n, nl.fluid.shape[1]))
+    k = np.random.default_rng(1).uniform(0.0, 1.0, n)
+    dv = {}
+    for support in (True, False):
+        d = replace(dens, gb=np.zeros_like(dens.gb), wm=dens.wm if support else np.zeros((0, 6)))
+        for name, cache in (("plain", be.NO_PAIRS), ("cached", pairs)):
+            v, kt = np.zeros((n, 3)), np.zeros(n)
+            be.apply_stiffness(x, mf, d, nl, cache, h, k, dt, v, kt)
+            dv[support, name] = v
+            scale = np.abs(v).sum(axis=0).max()
+            assert np.all(np.abs(v.sum(axis=0)) <= MOMENTUM_TOL * scale), (support, name, v.sum(axis=0))
+    np.testing.assert_allclose(dv[True, "cached"], dv[True, "plain"], rtol=1e-9, atol=1e-12)
+    changed = np.abs(dv[True, "plain"] - dv[False, "plain"]).max(axis=1) > 1e-12
+    xs = be.to_host(x)
+    reach = np.minimum(np.minimum(xs, 0.56 - xs)[:, [0, 2]].min(axis=1), xs[:, 1])
+    assert changed.any() and np.all(reach[changed] < 2 * scene.support)  # within reach + a support of a face
+
+
+@pytest.mark.slow  # compiles the field passes
+def test_the_density_solve_resists_expansion_near_rest_with_field_walls_only():
+    """With field walls the density residual is two-sided near rest density (bodies.TENSION_BAND):
+    rho_err = max(rho*, rho0) - rho0 + TENSION_WEIGHT min(rho* - rho0, 0) where rho >= (1 - band) rho0;
+    at v = 0 (static walls) rho* = rho. Without field walls it stays BK17's max(rho*, rho0) - rho0."""
+    from ipsph.backends.bodies import TENSION_BAND, TENSION_WEIGHT
+
+    scene = tank()
+    sim = Simulation(scene, *sample_scene(scene)[:3], settle=False)
+    be, meth = sim.be, sim.method
+    dens, n, fl = meth.data.dens, sim.n_fluid, meth.fluid
+    rho = dens.rho.copy()
+    rho[::3] *= 0.97  # some inside the band and below rest density
+    rho[1::7] *= 0.9  # some below it
+    for field in (True, False):
+        d = replace(dens, rho=rho, wb=dens.wb if field else np.zeros(0))
+        err, k = np.zeros(n), np.zeros(n)
+        be.density_residual(
+            meth.state.x, np.zeros((n, 3)), fl.mf, d, meth.lists, be.NO_PAIRS, fl.h, fl.rho0, 0.004, err, k
+        )
+        want = np.maximum(rho, fl.rho0) - fl.rho0
+        if field:
+            band = rho >= (1.0 - TENSION_BAND) * fl.rho0
+            want = want + np.where(band, TENSION_WEIGHT * np.minimum(rho - fl.rho0, 0.0), 0.0)
+            assert (want < 0).sum() >= n // 4
+        np.testing.assert_allclose(err, want, rtol=1e-12, atol=1e-9)

@@ -35,9 +35,10 @@ class Densities:
     DFSPH factor alpha, PF multiplier lam, density error err = max(rho/rho0 - 1, 0), neighbour
     count n_nbrs, and the walls' gradient sum gb_i = sum_b m_b grad W_ib that every later pass
     at the same positions takes the walls from; gvb_i = sum_b m_b v_b . grad W_ib, the moving
-    walls' part of D rho_i/Dt (`wall_rate`; stays 0 with static walls). With field walls, wb and gw
-    are their density and its gradient (`wall_field`, added into rho and gb by the density pass) and
-    ws the mean depth of the wall below each particle (`wall_pressure`); without, they have no rows."""
+    walls' part of D rho_i/Dt (`wall_rate`; stays 0 with static walls). The fields of `FIELD` are the
+    field walls' (`wall_field`) and have no rows without them: wb and gw their density and its gradient
+    (added into rho and gb by the density pass), ws the mean depth of the wall below each particle
+    (`wall_pressure`), wm their support along the faces (xx, yy, zz, xy, xz, yz; method.md section 11)."""
 
     rho: Array
     alpha: Array
@@ -49,10 +50,15 @@ class Densities:
     wb: Array
     gw: Array
     ws: Array
+    wm: Array
+
+    # the field walls' fields and their shape per particle: rows only with field walls
+    FIELD = {"wb": (), "gw": (3,), "ws": (), "wm": (6,)}
 
     @classmethod
     def allocate(cls, be: "Backend", n: int, field: bool = False) -> "Densities":
         m = n if field else 0
+        walls = {name: be.zeros(m, shape) for name, shape in cls.FIELD.items()}
         return cls(
             be.zeros(n),
             be.zeros(n),
@@ -61,10 +67,13 @@ class Densities:
             be.zeros(n, dtype="int32"),
             be.zeros(n, (3,)),
             be.zeros(n),
-            be.zeros(m),
-            be.zeros(m, (3,)),
-            be.zeros(m),
+            **walls,
         )
+
+    def with_field(self, be: "Backend", n: int) -> None:
+        """Give the field walls' fields n rows (a scratch allocated without them)."""
+        for name, shape in self.FIELD.items():
+            setattr(self, name, be.zeros(n, shape))
 
     def arrays(self) -> tuple:
         return tuple(getattr(self, f.name) for f in fields(self))
@@ -217,7 +226,7 @@ class Backend:
         self.run_pass("cg_precondition", r=r, diag=diag, rho=rho, mf=mf, z=z, rz=rz, rr=rr)
 
     def wall_field(self, x, field, rho0, out: Densities) -> None:
-        """Field walls: out.wb, out.gw, out.gvb and out.ws at x (`field_bodies.wall_field_at`)."""
+        """Field walls: out.wb, out.gw, out.gvb, out.ws and out.wm at x (`field_bodies.wall_field_at`)."""
         self.run_pass("wall_field", dens=out, x=x, h=field.h, rho0=rho0, wall=field.wall, objects=field.arrays())
 
     def wall_pressure(self, dens: Densities, g, rho0: float, dt: float, v) -> None:

@@ -31,6 +31,11 @@ FAST = FASTMATH  # the one fastmath set (kernels.FASTMATH)
 # (too few to trust their density rate: method.md section 2).
 MIN_NEIGHBOURS_WARM = 20
 
+# The density solve's tension with field walls (method.md section 11, "Two-sided density solve"): a
+# particle within TENSION_BAND of rest density (rho_i >= (1 - TENSION_BAND) rho0) also resists its
+# predicted expansion, at TENSION_WEIGHT of the compression's stiffness.
+TENSION_BAND, TENSION_WEIGHT = 0.05, 0.5
+
 # buffer rows: x_ij components, then per-neighbour scalars
 DX, DY, DZ, C0, C1, C2, C3, C4, C5 = 0, 1, 2, 3, 4, 5, 6, 7, 8
 
@@ -211,20 +216,56 @@ def divergence_residual_at(i, x, v, mf, gb, gvb, nf, cf, pair_grad, cached, h, a
 
 
 @njit(inline="always", fastmath=FAST)
-def density_residual_at(i, x, v, mf, gb, gvb, nf, cf, pair_grad, cached, h, rho, alpha, rho0, dt, buf, rho_err, k):
+def density_residual_at(
+    i, x, v, mf, gb, gvb, wb, nf, cf, pair_grad, cached, h, rho, alpha, rho0, dt, two_sided, buf, rho_err, k
+):
     """Density-solve residual and stiffness [BK17 Alg. 3]:
-    rho*_i = max(rho_i + dt D rho_i/Dt, rho0);  rho_err_i = rho*_i - rho0;  k_i = alpha_i rho_err_i / dt^2."""
+    rho*_i = rho_i + dt D rho_i/Dt;  rho_err_i = max(rho*_i, rho0) - rho0;  k_i = alpha_i rho_err_i / dt^2.
+
+    `two_sided` (field walls: their density wb has rows): where rho_i >= (1 - TENSION_BAND) rho0, rho_err_i += TENSION_WEIGHT
+    min(rho*_i - rho0, 0), so a particle at rest density also resists being pulled apart."""
     rate = density_rate_at(i, x, v, mf, gb, gvb, nf, cf, pair_grad, cached, h, buf)
-    e = max(rho[i] + dt * rate, rho0) - rho0
+    pred = rho[i] + dt * rate
+    e = max(pred, rho0) - rho0
+    if two_sided and rho[i] >= (1.0 - TENSION_BAND) * rho0:
+        e += TENSION_WEIGHT * min(pred - rho0, 0.0)
     rho_err[i] = e
     k[i] = alpha[i] * e / (dt * dt)
 
 
 @njit(inline="always", fastmath=FAST)
-def stiffness_at(i, x, mf, gb, nf, cf, pair_grad, cached, h, k, dt, buf, v, k_total, mirror):
-    """v_i -= dt [sum_j mf (k_i + k_j) grad W_ij + mirror k_i gb_i];  k_total_i += k_i.
+def _support_sum(i, n_f, nf, wm, pair_grad, cached, mf, h, buf, a0, a1, a2):
+    """sum_j s_ij (M_i + M_j)/2 mf grad W_ij, s_ij = buf[C0, j] and (a0, a1, a2) = sum_j s_ij mf grad W_ij:
+    (M_i a + sum_j s_ij M_j mf grad W_ij) / 2 (M the walls' support, wm: xx, yy, zz, xy, xz, yz).
+    Neighbours without support (trace 0) are skipped; with the positions, buf holds x_ij (`_gather_xf`)."""
+    m = wm[i]
+    b0 = m[0] * a0 + m[3] * a1 + m[4] * a2
+    b1 = m[3] * a0 + m[1] * a1 + m[5] * a2
+    b2 = m[4] * a0 + m[5] * a1 + m[2] * a2
+    for n in range(n_f):
+        j = nf[i, n]
+        if wm[j, 0] + wm[j, 1] + wm[j, 2] <= 0.0:
+            continue
+        if cached:
+            q0, q1, q2 = pair_grad[i, 0, n], pair_grad[i, 1, n], pair_grad[i, 2, n]
+        else:
+            d0, d1, d2 = buf[DX, n], buf[DY, n], buf[DZ, n]
+            f = mf * grad_w_factor(math.sqrt(d0 * d0 + d1 * d1 + d2 * d2), h)
+            q0, q1, q2 = f * d0, f * d1, f * d2
+        s = buf[C0, n]
+        b0 += s * (wm[j, 0] * q0 + wm[j, 3] * q1 + wm[j, 4] * q2)
+        b1 += s * (wm[j, 3] * q0 + wm[j, 1] * q1 + wm[j, 5] * q2)
+        b2 += s * (wm[j, 4] * q0 + wm[j, 5] * q1 + wm[j, 2] * q2)
+    return 0.5 * b0, 0.5 * b1, 0.5 * b2
+
+
+@njit(inline="always", fastmath=FAST)
+def stiffness_at(i, x, mf, gb, wm, nf, cf, pair_grad, cached, support, h, k, dt, buf, v, k_total, mirror):
+    """v_i -= dt [sum_j mf (k_i + k_j) (I + (M_i + M_j)/2) grad W_ij + mirror k_i gb_i];  k_total_i += k_i.
 
     mirror: the walls' stiffness k_b = (mirror - 1) k_i (1: carried once, Akinci's; 2: mirrored).
+    M: the field walls' support along their faces (wm; `support` when it has rows, else M = 0),
+    symmetric in the pair, so the fluid's momentum stays conserved (method.md section 11).
 
     In place: reads k of the neighbours and writes v_i, k_total_i only. mf grad W_ij comes from
     the pair cache when `cached`, else from the positions."""
@@ -246,6 +287,11 @@ def stiffness_at(i, x, mf, gb, nf, cf, pair_grad, cached, h, k, dt, buf, v, k_to
         a0 *= mf
         a1 *= mf
         a2 *= mf
+    if support:
+        s0, s1, s2 = _support_sum(i, n_f, nf, wm, pair_grad, cached, mf, h, buf, a0, a1, a2)
+        a0 += s0
+        a1 += s1
+        a2 += s2
     kw = ki if mirror == 1.0 else mirror * ki  # once: exactly the particle models' arithmetic
     v[i, 0] -= dt * (a0 + kw * gb[i, 0])
     v[i, 1] -= dt * (a1 + kw * gb[i, 1])

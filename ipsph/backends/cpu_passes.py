@@ -182,11 +182,12 @@ def accelerate(v, dt, a):
 
 @njit(cache=True)
 def warm_stiffness(k_total, scale, rate, n_nbrs, min_nbrs, warm):
-    """DFSPH's warm start (method.md section 2): warm_i = 0.5 min(k_total_i scale, 0.5) where
+    """DFSPH's warm start (method.md section 2): warm_i = 0.5 clamp(k_total_i scale, -0.5, 0.5) where
     rate_i > 0 and n_nbrs_i >= min_nbrs (every particle if `rate` is empty), else 0; then
-    k_total = 0, ready to sum what the solve applies."""
+    k_total = 0, ready to sum what the solve applies. (k_total < 0 only where the density solve is
+    two-sided, bodies.TENSION_BAND.)"""
     masked = rate.shape[0] == k_total.shape[0]
     for i in range(k_total.shape[0]):
         on = (rate[i] > 0.0 and n_nbrs[i] >= min_nbrs) if masked else True
-        warm[i] = 0.5 * min(k_total[i] * scale, 0.5) if on else 0.0
+        warm[i] = 0.5 * max(min(k_total[i] * scale, 0.5), -0.5) if on else 0.0
         k_total[i] = 0.0

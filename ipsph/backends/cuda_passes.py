@@ -112,7 +112,7 @@ def warm_stiffness(k_total, scale, rate, n_nbrs, min_nbrs, warm):
     masked = rate.shape[0] == k_total.shape[0]
     for i in range(cuda.grid(1), k_total.shape[0], cuda.gridsize(1)):
         on = (rate[i] > 0.0 and n_nbrs[i] >= min_nbrs) if masked else True
-        warm[i] = 0.5 * min(k_total[i] * scale, 0.5) if on else 0.0
+        warm[i] = 0.5 * max(min(k_total[i] * scale, 0.5), -0.5) if on else 0.0
         k_total[i] = 0.0
 
 

@@ -32,7 +32,7 @@ from numba import njit
 from .bodies import density_core, density_store
 from .field_grid import grid_distance
 from .kernels import FASTMATH
-from .wall_field import box_distance, box_potential, face_potential
+from .wall_field import box_distance, box_potential, box_support, face_potential, face_support
 
 FAST = FASTMATH
 
@@ -129,15 +129,40 @@ def object_potential(k, p0, p1, p2, h, b, reach, objects):
 
 
 @njit(inline="always", fastmath=FAST)
-def wall_field_at(i, x, h, rho0, wall, objects, wb, gw, gvb, ws):
+def _object_support(k, l0, l1, l2, mk, n0, n1, n2, h, b, u_reach, kind, sign, rot, size):
+    """Object k's support M_k = sum_f c_f (I - n_f n_f) in world axes, as (xx, yy, zz, xy, xz, yz): a box
+    container per face (`wall_field.box_support`, turned by R_k: R diag R^T), anything else through its
+    one potential mk and its gradient n (c(mk) (I - n n), n = grad mu / |grad mu|)."""
+    if kind[k] == BOX and sign[k] < 0.0:
+        a0, a1, a2 = box_support(l0, l1, l2, size[k, 0], size[k, 1], size[k, 2], h, b, u_reach)
+        r = rot
+        m00 = r[k, 0, 0] * r[k, 0, 0] * a0 + r[k, 0, 1] * r[k, 0, 1] * a1 + r[k, 0, 2] * r[k, 0, 2] * a2
+        m11 = r[k, 1, 0] * r[k, 1, 0] * a0 + r[k, 1, 1] * r[k, 1, 1] * a1 + r[k, 1, 2] * r[k, 1, 2] * a2
+        m22 = r[k, 2, 0] * r[k, 2, 0] * a0 + r[k, 2, 1] * r[k, 2, 1] * a1 + r[k, 2, 2] * r[k, 2, 2] * a2
+        m01 = r[k, 0, 0] * r[k, 1, 0] * a0 + r[k, 0, 1] * r[k, 1, 1] * a1 + r[k, 0, 2] * r[k, 1, 2] * a2
+        m02 = r[k, 0, 0] * r[k, 2, 0] * a0 + r[k, 0, 1] * r[k, 2, 1] * a1 + r[k, 0, 2] * r[k, 2, 2] * a2
+        m12 = r[k, 1, 0] * r[k, 2, 0] * a0 + r[k, 1, 1] * r[k, 2, 1] * a1 + r[k, 1, 2] * r[k, 2, 2] * a2
+        return m00, m11, m22, m01, m02, m12
+    nn = n0 * n0 + n1 * n1 + n2 * n2
+    if nn <= 0.0:
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    c = face_support(mk)
+    q = c / nn
+    return c - q * n0 * n0, c - q * n1 * n1, c - q * n2 * n2, -q * n0 * n1, -q * n0 * n2, -q * n1 * n2
+
+
+@njit(inline="always", fastmath=FAST)
+def wall_field_at(i, x, h, rho0, wall, objects, wb, gw, gvb, ws, wm):
     """The walls' density wb_i = rho0 Lambda_i, Lambda_i = 1 - exp(-sum_k mu_k(x_i)), its gradient
-    gw_i = rho0 exp(-mu) sum_k grad mu_k, and the moving walls' rate term gvb_i = sum_k gw_i,k . v_k(x_i)
-    (method.md section 11; wall = (b, U) of `wall_field.face_potential`). ws_i = 0: the potential
-    carries the wall pressure once, with no hydrostatic increment."""
+    gw_i = rho0 exp(-mu) sum_k grad mu_k, the moving walls' rate term gvb_i = sum_k gw_i,k . v_k(x_i)
+    and the support along the faces wm_i = sum_k M_k(x_i) (`_object_support`; method.md section 11;
+    wall = (b, U) of `wall_field.face_potential`). ws_i = 0: the potential carries the wall pressure
+    once, with no hydrostatic increment."""
     kind, sign, rot, pos, size, reach, vel, omega, qtab, otab, hdr, pool = objects
     b, u_reach, s_wall = wall
     p0, p1, p2 = x[i, 0], x[i, 1], x[i, 2]
     m = g0 = g1 = g2 = gv = 0.0
+    s00 = s11 = s22 = s01 = s02 = s12 = 0.0
     for k in range(kind.shape[0]):
         l0, l1, l2, d0, d1, d2 = _local(k, p0, p1, p2, rot, pos)
         if _culled(k, l0, l1, l2, kind, sign, size, reach):
@@ -149,6 +174,17 @@ def wall_field_at(i, x, h, rho0, wall, objects, wb, gw, gvb, ws):
         g2 += n2
         u0, u1, u2 = object_velocity(k, d0, d1, d2, vel, omega)
         gv += n0 * u0 + n1 * u1 + n2 * u2
+        if mk > 0.0:
+            t00, t11, t22, t01, t02, t12 = _object_support(
+                k, l0, l1, l2, mk, n0, n1, n2, h, b, u_reach, kind, sign, rot, size
+            )
+            s00 += t00
+            s11 += t11
+            s22 += t22
+            s01 += t01
+            s02 += t02
+            s12 += t12
+    wm[i, 0], wm[i, 1], wm[i, 2], wm[i, 3], wm[i, 4], wm[i, 5] = s00, s11, s22, s01, s02, s12
     if m <= 0.0:
         wb[i] = 0.0
         gw[i, 0] = gw[i, 1] = gw[i, 2] = 0.0

@@ -30,6 +30,7 @@ DERIVED = {
     "with_disp": "disp.shape[0] == x.shape[0]",  # the PF displacement (disp has a row per particle)
     "eps": "0.01 * h * h",  # the viscosity's regulariser
     "standard": "nu_dt > 0.0",  # SPlisHSPlasH's Standard viscosity on top of XSPH
+    "support": "wm.shape[0] == x.shape[0]",  # the field walls' support along their faces (it has rows)
 }
 
 
@@ -77,7 +78,13 @@ PASSES = {
     for p in (
         Pass("density_factor_lambda", B.density_at, B.DENSITY_ROWS, "all"),
         Pass("divergence_residual", B.divergence_residual_at, B.RATE_ROWS, "fluid"),
-        Pass("density_residual", B.density_residual_at, B.RATE_ROWS, "fluid"),
+        Pass(
+            "density_residual",
+            B.density_residual_at,
+            B.RATE_ROWS,
+            "fluid",
+            derived={"two_sided": "wb.shape[0] == x.shape[0]"},  # field walls (bodies.TENSION_BAND)
+        ),
         Pass("apply_stiffness", B.stiffness_at, B.STIFFNESS_ROWS, "fluid"),
         Pass("xsph", VB.viscosity_at, B.VISCOSITY_ROWS, "fluid"),
         Pass("pf_global", B.pf_global_at, B.PF_GLOBAL_ROWS, "fluid"),

@@ -370,3 +370,27 @@ def box_potential(x, y, z, ex, ey, ez, h, container, b, reach):
     m4, a4 = face_potential((ez - z) / h, b, reach)
     m5, a5 = face_potential((ez + z) / h, b, reach)
     return m0 + m1 + m2 + m3 + m4 + m5, (a1 - a0) / h, (a3 - a2) / h, (a5 - a4) / h
+
+
+# -- the walls' support along their faces (method.md section 11, "Support") ---------------------------
+@njit(inline="always", fastmath=FAST)
+def face_support(m):
+    """c(mu) = min(e^mu - 1, 1) of one face's potential mu: the reading's ratio Lambda / (1 - Lambda),
+    the share of the particle's missing fluid the wall stands in for, capped at a full face."""
+    return min(math.exp(m) - 1.0, 1.0)
+
+
+@njit(inline="always", fastmath=FAST)
+def _face_c(u, b, reach):
+    """c of one face at signed distance u (units of H)."""
+    return face_support(face_potential(u, b, reach)[0])
+
+
+@njit(inline="always", fastmath=FAST)
+def box_support(x, y, z, ex, ey, ez, h, b, reach):
+    """A container's support in its frame, diagonal: (M_xx, M_yy, M_zz) = sum_f c_f (I - n_f n_f) over
+    its six faces (a face of normal x supports y and z)."""
+    cx = _face_c((ex - x) / h, b, reach) + _face_c((ex + x) / h, b, reach)
+    cy = _face_c((ey - y) / h, b, reach) + _face_c((ey + y) / h, b, reach)
+    cz = _face_c((ez - z) / h, b, reach) + _face_c((ez + z) / h, b, reach)
+    return cy + cz, cx + cz, cx + cy

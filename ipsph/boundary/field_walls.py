@@ -157,10 +157,19 @@ class FieldWalls:
 
     def reading(self, points: np.ndarray, rho0: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
         """(rho_b, gb) the walls add at each point: rho0 Lambda(I) and its gradient."""
+        wb, gw, _ = self._fields(points, rho0)
+        return wb, gw
+
+    def support(self, points: np.ndarray) -> np.ndarray:
+        """The walls' support along their faces at each point, (n, 6): xx, yy, zz, xy, xz, yz of
+        M = sum_f c_f (I - n_f n_f) (method.md section 11)."""
+        return self._fields(points, 1.0)[2]
+
+    def _fields(self, points, rho0):
         from ..backends.cpu_field import wall_field
 
         p = np.ascontiguousarray(np.asarray(points, dtype=np.float64).reshape(-1, 3))
-        wb, gw, gvb, ws = np.zeros(len(p)), np.zeros((len(p), 3)), np.zeros(len(p)), np.zeros(len(p))
+        wb, gw, gvb, ws, wm = (np.zeros((len(p), *shape)) for shape in ((), (3,), (), (), (6,)))
         if len(p) and self.n:
-            wall_field(p, self.h, rho0, self.wall, self.arrays(), wb, gw, gvb, ws)
-        return wb, gw
+            wall_field(p, self.h, rho0, self.wall, self.arrays(), wb, gw, gvb, ws, wm)
+        return wb, gw, wm

@@ -129,10 +129,9 @@ class Method:
         """`self.data`: the method's scratch, allocated once for the state's capacity and used
         through views of its first n rows (the same arrays when n = capacity: no emitters)."""
         self._scratch = data_cls.allocate(self.be, self.state.capacity)
-        if self.boundary.field is not None:  # field walls: the densities' wb, gw get their rows
+        if self.boundary.field is not None:  # field walls: the densities' Densities.FIELD get their rows
             for dens in _densities(self._scratch):
-                full = Densities.allocate(self.be, self.state.capacity, field=True)
-                dens.wb, dens.gw, dens.ws = full.wb, full.gw, full.ws
+                dens.with_field(self.be, self.state.capacity)
         implicit = self.scene.viscosity_model == "implicit" and self.scene.kinematic_viscosity_m2s > 0.0
         self._visc_scratch = ViscosityScratch.allocate(self.be, self.state.capacity) if implicit else None
         self.resize(self.state.n)
