@@ -3,7 +3,7 @@ layer's height above the floor and the interior slope (means over the frames of 
 per-step peak speed and whether the kinetic energy grows (issue 39's tank rows).
 
     python scripts/tank_check.py [--models field akinci-volume] [--methods ipsph dfsph] [--r 0.02] [--t 4]
-                                 [--seeds N] [--where] [--layers]
+                                 [--seeds N [--first-seed K]] [--where] [--layers]
 
 A settled tank is never quite still, and its trajectory is chaotic: the same commit on another CPU
 (another rounding of the same sums) moves one run's p1 and slope by about 2 % and its peak speed by
@@ -168,6 +168,7 @@ if __name__ == "__main__":
     ap.add_argument("--where", action="store_true", help="where the fastest particle of each step is")
     ap.add_argument("--layers", action="store_true", help="the first layer's particle count once a second")
     ap.add_argument("--seeds", type=int, default=0, help="N jittered trajectories per row, and their median [range]")
+    ap.add_argument("--first-seed", type=int, default=0, help="--seeds counts from this seed (rerun one: --seeds 1)")
     a = ap.parse_args()
     print(
         f"method model n walls | p1/hyd p2/hyd | y1/d | slope (means over the last {AVERAGE_S:g} s) | vmax (after t/4) | "
@@ -176,7 +177,7 @@ if __name__ == "__main__":
     for model in a.models:
         for method in a.methods:
             runs = []
-            for seed in range(a.seeds) if a.seeds else [None]:
+            for seed in range(a.first_seed, a.first_seed + a.seeds) if a.seeds else [None]:
                 o = tank(method, model, a.r, a.t, where=a.where, seed=seed)
                 runs.append(o)
                 print(
