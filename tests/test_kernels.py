@@ -137,6 +137,6 @@ def test_pair_forces_of_the_stiffness_pass_cancel():
         nf[i, : len(a)] = a
     k = rng.uniform(0.0, 1.0, len(x))
     v, k_total = np.zeros((len(x), 3)), np.zeros(len(x))
-    apply_stiffness(x, 1.0, np.zeros((len(x), 3)), nf, cf, NO_PAIR_CACHE, H, k, 1e-3, v, k_total, 1.0)
+    apply_stiffness(x, 1.0, np.zeros((len(x), 3)), np.zeros((0, 6)), nf, cf, NO_PAIR_CACHE, H, k, 1e-3, v, k_total, 1.0)
     assert np.abs(v).sum() > 0
     assert np.abs(v.sum(axis=0)).max() <= 1e-12 * np.abs(v).sum()

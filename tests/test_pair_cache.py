@@ -126,9 +126,9 @@ def test_cached_passes_equal_the_uncached_ones(splashing, by):
     out = {}
     for name, pg in (("cached", cache), ("uncached", NO_PAIR_CACHE)):
         v, kt, drho, kk, err = st.v.copy(), np.zeros(n), np.empty(n), np.empty(n), np.empty(n)
-        apply_stiffness(st.x, fl.mf, d.gb, nf, cf, pg, fl.h, k, dt, v, kt, 1.0)
+        apply_stiffness(st.x, fl.mf, d.gb, d.wm, nf, cf, pg, fl.h, k, dt, v, kt, 1.0)
         divergence_residual(st.x, v, fl.mf, d.gb, d.gvb, nf, cf, pg, fl.h, d.alpha, d.n_nbrs, dt, drho, kk)
-        density_residual(st.x, v, fl.mf, d.gb, d.gvb, nf, cf, pg, fl.h, d.rho, d.alpha, fl.rho0, dt, err, kk)
+        density_residual(st.x, v, fl.mf, d.gb, d.gvb, d.wb, nf, cf, pg, fl.h, d.rho, d.alpha, fl.rho0, dt, err, kk)
         out[name] = v, drho, err
     for a, b in zip(out["cached"], out["uncached"]):
         assert np.abs(a - b).max() <= PASS_RTOL * np.abs(b).max()
@@ -142,9 +142,9 @@ class SolveSpy(CPUBackend):
         super().__init__()  # the backend's precision and its empty arrays
         self.calls = []
 
-    def apply_stiffness(self, x, mf, dens, nl, pairs, h, k, dt, v, k_total):
+    def apply_stiffness(self, x, mf, dens, nl, pairs, h, k, dt, v, k_total, support=True):
         self.calls.append(pairs.shape[0] == x.shape[0])
-        super().apply_stiffness(x, mf, dens, nl, pairs, h, k, dt, v, k_total)
+        super().apply_stiffness(x, mf, dens, nl, pairs, h, k, dt, v, k_total, support)
 
 
 def _steps(method, cache_mb, n):
