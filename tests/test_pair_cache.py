@@ -142,9 +142,9 @@ class SolveSpy(CPUBackend):
         super().__init__()  # the backend's precision and its empty arrays
         self.calls = []
 
-    def apply_stiffness(self, x, mf, dens, nl, pairs, h, k, dt, v, k_total, support=True):
+    def apply_stiffness(self, x, mf, dens, nl, pairs, h, k, dt, v, k_total):
         self.calls.append(pairs.shape[0] == x.shape[0])
-        super().apply_stiffness(x, mf, dens, nl, pairs, h, k, dt, v, k_total, support)
+        super().apply_stiffness(x, mf, dens, nl, pairs, h, k, dt, v, k_total)
 
 
 def _steps(method, cache_mb, n):

@@ -19,7 +19,6 @@ methods below bind a row's arguments by name (`run_pass`) and a backend only lau
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
-from functools import cached_property
 from typing import Any
 
 from .passes import PASSES, Pass
@@ -71,10 +70,11 @@ class Densities:
             **walls,
         )
 
-    def with_field(self, be: "Backend", n: int) -> None:
-        """Give the field walls' fields n rows (a scratch allocated without them)."""
+    def with_field(self, be: "Backend", n: int, support: bool = True) -> None:
+        """Give the field walls' fields n rows (a scratch allocated without them); wm only with
+        `support` (the method applies it: `Method.wall_support`)."""
         for name, shape in self.FIELD.items():
-            setattr(self, name, be.zeros(n, shape))
+            setattr(self, name, be.zeros(n if support or name != "wm" else 0, shape))
 
     def arrays(self) -> tuple:
         return tuple(getattr(self, f.name) for f in fields(self))
@@ -202,18 +202,8 @@ class Backend:
         named = {"x": x, "v": v, "mf": mf, "pair_grad": pairs, "h": h, "rho0": rho0, "dt": dt, "rho_err": err, "k": k}
         self.run_pass("density_residual", nl, dens, **named)
 
-    def apply_stiffness(self, x, mf, dens, nl, pairs, h, k, dt, v, k_total, support: bool = True) -> None:
-        """One stiffness update (bodies.stiffness_at); `support`: with the field walls' support along
-        their faces (dens.wm, when it has rows), else without (method.md section 11)."""
-        named = {"x": x, "mf": mf, "pair_grad": pairs, "h": h, "k": k, "dt": dt, "v": v, "k_total": k_total}
-        if not support:
-            named["wm"] = self._no_support
-        self.run_pass("apply_stiffness", nl, dens, **named)
-
-    @cached_property
-    def _no_support(self) -> Array:
-        """An empty support (no rows): stiffness_at then applies none."""
-        return self.zeros(0, (6,))
+    def apply_stiffness(self, x, mf, dens, nl, pairs, h, k, dt, v, k_total) -> None:
+        self.run_pass("apply_stiffness", nl, dens, x=x, mf=mf, pair_grad=pairs, h=h, k=k, dt=dt, v=v, k_total=k_total)
 
     def viscosity(self, x, v, mf, dens, lam, nl, h, zeta, nu_dt, v_out, drho, disp, pairs) -> Array:
         named = {"x": x, "v": v, "mf": mf, "lam": lam, "h": h, "zeta": zeta, "nu_dt": nu_dt}

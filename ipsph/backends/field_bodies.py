@@ -152,10 +152,11 @@ def _object_support(k, l0, l1, l2, mk, n0, n1, n2, h, b, u_reach, kind, sign, ro
 
 
 @njit(inline="always", fastmath=FAST)
-def wall_field_at(i, x, h, rho0, wall, objects, wb, gw, gvb, ws, wm):
+def wall_field_at(i, x, h, rho0, wall, objects, wb, gw, gvb, ws, wm, support):
     """The walls' density wb_i = rho0 Lambda_i, Lambda_i = 1 - exp(-sum_k mu_k(x_i)), its gradient
     gw_i = rho0 exp(-mu) sum_k grad mu_k, the moving walls' rate term gvb_i = sum_k gw_i,k . v_k(x_i)
-    and the support along the faces wm_i = sum_k M_k(x_i) (`_object_support`; method.md section 11;
+    and the support along the faces wm_i = sum_k M_k(x_i) (`_object_support`, where wm has rows:
+    `support`; method.md section 11;
     wall = (b, U) of `wall_field.face_potential`). ws_i = 0: the potential carries the wall pressure
     once, with no hydrostatic increment."""
     kind, sign, rot, pos, size, reach, vel, omega, qtab, otab, hdr, pool = objects
@@ -174,7 +175,7 @@ def wall_field_at(i, x, h, rho0, wall, objects, wb, gw, gvb, ws, wm):
         g2 += n2
         u0, u1, u2 = object_velocity(k, d0, d1, d2, vel, omega)
         gv += n0 * u0 + n1 * u1 + n2 * u2
-        if mk > 0.0:
+        if support and mk > 0.0:
             t00, t11, t22, t01, t02, t12 = _object_support(
                 k, l0, l1, l2, mk, n0, n1, n2, h, b, u_reach, kind, sign, rot, size
             )
@@ -184,7 +185,8 @@ def wall_field_at(i, x, h, rho0, wall, objects, wb, gw, gvb, ws, wm):
             s01 += t01
             s02 += t02
             s12 += t12
-    wm[i, 0], wm[i, 1], wm[i, 2], wm[i, 3], wm[i, 4], wm[i, 5] = s00, s11, s22, s01, s02, s12
+    if support:
+        wm[i, 0], wm[i, 1], wm[i, 2], wm[i, 3], wm[i, 4], wm[i, 5] = s00, s11, s22, s01, s02, s12
     if m <= 0.0:
         wb[i] = 0.0
         gw[i, 0] = gw[i, 1] = gw[i, 2] = 0.0

@@ -166,10 +166,12 @@ class FieldWalls:
         return self._fields(points, 1.0)[2]
 
     def _fields(self, points, rho0):
+        from ..backends.base import Densities
         from ..backends.cpu_field import wall_field
 
         p = np.ascontiguousarray(np.asarray(points, dtype=np.float64).reshape(-1, 3))
-        wb, gw, gvb, ws, wm = (np.zeros((len(p), *shape)) for shape in ((), (3,), (), (), (6,)))
+        shapes = {**Densities.FIELD, "gvb": ()}
+        wb, gw, gvb, ws, wm = (np.zeros((len(p), *shapes[name])) for name in ("wb", "gw", "gvb", "ws", "wm"))
         if len(p) and self.n:
             wall_field(p, self.h, rho0, self.wall, self.arrays(), wb, gw, gvb, ws, wm)
         return wb, gw, wm

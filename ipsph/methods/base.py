@@ -106,6 +106,9 @@ class Method:
 
     name = ""
     phases: tuple[str, ...] = ()
+    # field walls: the method's stiffness updates apply the walls' support along their faces
+    # (Densities.wm gets rows, method.md section 11); without, the field pass does not compute it
+    wall_support = False
 
     def __init__(self, scene: Scene, state: ParticleState, boundary: Boundary, search, be: Backend, mf: float):
         self.scene = scene
@@ -131,7 +134,7 @@ class Method:
         self._scratch = data_cls.allocate(self.be, self.state.capacity)
         if self.boundary.field is not None:  # field walls: the densities' Densities.FIELD get their rows
             for dens in _densities(self._scratch):
-                dens.with_field(self.be, self.state.capacity)
+                dens.with_field(self.be, self.state.capacity, support=self.wall_support)
         implicit = self.scene.viscosity_model == "implicit" and self.scene.kinematic_viscosity_m2s > 0.0
         self._visc_scratch = ViscosityScratch.allocate(self.be, self.state.capacity) if implicit else None
         self.resize(self.state.n)

@@ -36,6 +36,7 @@ class DFSPHData:
 
 class DFSPH(Method):
     name = "dfsph"
+    wall_support = True  # field walls: IPSPH and PF do not take it (method.md section 11)
     phases = ("neighbourSearch", "densities", "divergenceSolve", "xsph", "viscositySolve", "densitySolve")
 
     def __init__(self, *args):

@@ -98,7 +98,6 @@ class IPSPH(ProjectiveMethod):
                     self.dt_prev,
                     div,
                     rate=d.drho,
-                    support=False,  # field walls: their support raised IPSPH's tank energy (method.md 11)
                 )
                 rep.solver_maxed += maxed
         be.pf_pressure(st.pressure, st.pd_lambda, self.fluid.rho0, dt)

@@ -44,7 +44,6 @@ def divergence_solve(
     dt_prev: float | None,
     cfg: DivergenceConfig,
     rate=None,
-    support: bool = True,
 ) -> tuple[int, float, bool]:
     """Make D rho/Dt ~ 0 on `v` at the positions `x` (in place on v) [BK17 Alg. 2].
 
@@ -54,8 +53,7 @@ def divergence_solve(
     capped, where D rho_i/Dt > 0 (and the particle has >= MIN_NEIGHBOURS_WARM neighbours). `rate`, when given, is
     a D rho_i/Dt already at hand for that test (IPSPH: the viscosity pass's by-product), which
     saves one residual pass. `k_total` receives everything applied (the next warm start).
-    `dens`: the density pass at x. `support`: apply the field walls' support along their faces
-    (dens.wm; DFSPH does, IPSPH does not: method.md section 11). Returns (iterations, error, hit_cap).
+    `dens`: the density pass at x. Returns (iterations, error, hit_cap).
     """
     eta = cfg.error_pct / 100.0
     drho, k = sc.residual, sc.k
@@ -64,14 +62,14 @@ def divergence_solve(
             be.divergence_residual(x, v, fl.mf, dens, nl, pairs, fl.h, dt, drho, k)
             rate = drho  # already 0 below MIN_NEIGHBOURS_WARM neighbours
         be.warm_stiffness(k_total, dt_prev / dt, rate, dens.n_nbrs, MIN_NEIGHBOURS_WARM, sc.warm)
-        be.apply_stiffness(x, fl.mf, dens, nl, pairs, fl.h, sc.warm, dt, v, k_total, support=support)
+        be.apply_stiffness(x, fl.mf, dens, nl, pairs, fl.h, sc.warm, dt, v, k_total)
     else:
         be.fill(k_total, 0.0)
     be.divergence_residual(x, v, fl.mf, dens, nl, pairs, fl.h, dt, drho, k)
     err = dt * be.mean(drho) / fl.rho0
     it = 0
     while it < cfg.max_iterations and (it < cfg.min_iterations or err > eta):
-        be.apply_stiffness(x, fl.mf, dens, nl, pairs, fl.h, k, dt, v, k_total, support=support)
+        be.apply_stiffness(x, fl.mf, dens, nl, pairs, fl.h, k, dt, v, k_total)
         be.divergence_residual(x, v, fl.mf, dens, nl, pairs, fl.h, dt, drho, k)
         err = dt * be.mean(drho) / fl.rho0
         it += 1
