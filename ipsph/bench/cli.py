@@ -73,17 +73,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="also run SPlisHSPlasH's DFSPH and PF (with --scaling: its DFSPH on the same dam breaks; "
         "default: when pysplishsplash imports)",
     )
-    p.add_argument("--end-time", type=float, default=1.0, metavar="T", help="simulated seconds per run (default 1.0)")
-    p.add_argument("--repeats", type=int, default=3, metavar="R", help="interleaved repeats (default 3)")
-    p.add_argument("--threads", type=int, default=2, metavar="N", help="threads for every method (default 2)")
-    p.add_argument(
-        "--max-load",
-        type=float,
-        default=0.5,
-        metavar="CORES",
-        help="flag a run as loaded when other processes used more than this many cores on average "
+    _number(p, "--end-time", 1.0, "T", "simulated seconds per run (default 1.0)")
+    _number(p, "--repeats", 3, "R", "interleaved repeats (default 3)")
+    _number(p, "--threads", 2, "N", "threads for every method (default 2)")
+    _number(
+        p, "--max-load", 0.5, "CORES",
+        "flag a run as loaded when other processes used more than this many cores on average "
         "(i.e. mean load > threads + CORES); loaded runs are printed, not counted (default 0.5)",
-    )
+    )  # fmt: skip
     p.add_argument(
         "--scaling",
         nargs="*",
@@ -112,22 +109,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         default="float64",
         help="with --backend cuda: simulation.precision of the GPU runs (default float64)",
     )
-    p.add_argument("--device", type=int, default=0, metavar="N", help="with --backend cuda: the GPU")
-    p.add_argument(
-        "--cpu-max-particles",
-        type=int,
-        default=200_000,
-        metavar="N",
-        help="with --backend cuda: also run the CPU backend at the sizes up to N fluid particles "
-        "(default 200000; 0: none)",
-    )
-    p.add_argument(
-        "--scaling-steps",
-        type=int,
-        default=10,
-        metavar="S",
-        help="timed steps per size, after 2 warm-up steps (default 10)",
-    )
+    _number(p, "--device", 0, "N", "with --backend cuda: the GPU")
+    _number(
+        p, "--cpu-max-particles", 200_000, "N",
+        "with --backend cuda: also run the CPU backend at the sizes up to N fluid particles (default 200000; 0: none)",
+    )  # fmt: skip
+    _number(p, "--scaling-steps", 10, "S", "timed steps per size, after 2 warm-up steps (default 10)")
     p.add_argument(
         "--buoyancy",
         action="store_true",
@@ -161,7 +148,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         metavar="PATH",
         help="run nothing: print the tables of a file saved with --json (e.g. again as --markdown)",
     )
-    p.add_argument("--timeout", type=float, default=1800.0, metavar="S", help="per-run timeout (default 1800 s)")
+    _number(p, "--timeout", 1800.0, "S", "per-run timeout (default 1800 s)")
+
+
+def _number(p: argparse.ArgumentParser, flag: str, default: int | float, metavar: str, help: str) -> None:
+    """Add an option that takes one number, parsed as its default's type (int or float)."""
+    p.add_argument(flag, type=type(default), default=default, metavar=metavar, help=help)
 
 
 def check_args(args) -> None:
