@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 from ..backends import Densities
 from .base import Method, StepReport
-from .solves import SolveScratch, density_solve, divergence_solve
+from .solves import SolveAt, SolveScratch, density_solve, divergence_solve
 
 
 @dataclass
@@ -68,10 +68,11 @@ class DFSPH(Method):
     def step(self, dt: float) -> StepReport:
         be, st, d, fl, cfg, nl = self.be, self.state, self.data, self.fluid, self.cfg, self.lists
         rep = self.begin(dt)
+        at = SolveAt(st.x, st.v, d.dens, nl, d.pairs)  # both solves: at x^n, on v in place
         if cfg.divergence.enabled:
             with self.timer("divergenceSolve"):
                 rep.divergence_iterations, rep.divergence_error, maxed = divergence_solve(
-                    be, fl, st.x, st.v, d.dens, nl, d.pairs, st.k_div, d.solve, dt, self.dt_prev, cfg.divergence
+                    be, fl, at, st.k_div, d.solve, dt, self.dt_prev, cfg.divergence
                 )
                 rep.solver_maxed += maxed
         with self.timer("xsph"):
@@ -95,9 +96,7 @@ class DFSPH(Method):
             be.copy(st.v, d.v_out)
         self.implicit_viscosity(dt, st.x, st.v, d.dens)  # viscosity_model implicit (method.md 10)
         with self.timer("densitySolve"):
-            rep.density_iterations, maxed = density_solve(
-                be, fl, st.x, st.v, d.dens, nl, d.pairs, st.k_dens, d.solve, dt, self.dt_prev, cfg.dfsph
-            )
+            rep.density_iterations, maxed = density_solve(be, fl, at, st.k_dens, d.solve, dt, self.dt_prev, cfg.dfsph)
             rep.solver_maxed += maxed
             be.stiffness_pressure(st.pressure, st.k_dens, d.dens.rho)
         self.wall_reaction(dt, k=(st.k_div, st.k_dens) if cfg.divergence.enabled else (st.k_dens,))

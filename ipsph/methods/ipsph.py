@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 from .base import StepReport
 from .pf import PFData, ProjectiveMethod
-from .solves import SolveScratch, divergence_solve
+from .solves import SolveAt, SolveScratch, divergence_solve
 
 
 @dataclass
@@ -87,11 +87,7 @@ class IPSPH(ProjectiveMethod):
                 rep.divergence_iterations, rep.divergence_error, maxed = divergence_solve(
                     be,
                     self.fluid,
-                    st.x,
-                    st.v,
-                    d.dens,
-                    self.lists,
-                    pairs,
+                    SolveAt(st.x, st.v, d.dens, self.lists, pairs),
                     st.k_div,
                     d.solve,
                     dt,

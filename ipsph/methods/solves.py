@@ -1,9 +1,10 @@
-"""The shared solves, on explicit arrays: DFSPH's divergence and density solves [BK17 Alg. 2, 3]
-and Projective Fluids' local/global iteration [WKB16; the paper's Alg. 2].
+"""The shared solves: DFSPH's divergence and density solves [BK17 Alg. 2, 3] and Projective
+Fluids' local/global iteration [WKB16; the paper's Alg. 2].
 
-Each takes the backend, the fluid constants, the arrays it reads and writes, the neighbour lists
-and the pair cache the caller got from the pass that filled it at these positions
-(`be.NO_PAIRS`: evaluate the kernel instead), and a `SolveScratch` for its per-iteration arrays.
+Each takes the backend, the fluid constants, the arrays it reads and writes (DFSPH's: one
+`SolveAt`), the neighbour lists and the pair cache the caller got from the pass that filled it at
+these positions (`be.NO_PAIRS`: evaluate the kernel instead), and a `SolveScratch` for its
+per-iteration arrays.
 They hold no state between calls; warm starts arrive as arguments.
 """
 
@@ -30,14 +31,41 @@ class SolveScratch:
         return cls(be.zeros(n), be.zeros(n), be.zeros(n))
 
 
+@dataclass(frozen=True)
+class SolveAt:
+    """What a DFSPH solve iterates on: the positions x (fixed), the velocities v (corrected in
+    place), the density pass at x (`dens`), the neighbour lists and the pair cache that pass filled."""
+
+    x: object
+    v: object
+    dens: Densities
+    nl: object
+    pairs: object
+
+    def apply(self, be: Backend, fl: Fluid, k, dt: float, k_total) -> None:
+        """v -= dt sum_j m (k_i + k_j) grad W_ij (+ the walls' terms); k_total += k."""
+        be.apply_stiffness(self.x, fl.mf, self.dens, self.nl, self.pairs, fl.h, k, dt, self.v, k_total)
+
+
+def _iterate(be: Backend, fl: Fluid, at: SolveAt, sc: SolveScratch, k_total, dt: float, residual, error, stop):
+    """The Jacobi loop both solves share: apply k, recompute the residual (and k), until
+    error() <= eta after at least lo and at most hi iterations, stop = (eta, lo, hi).
+    Returns (iterations, error)."""
+    eta, lo, hi = stop
+    err = error()
+    it = 0
+    while it < hi and (it < lo or err > eta):
+        at.apply(be, fl, sc.k, dt, k_total)
+        residual()
+        err = error()
+        it += 1
+    return it, err
+
+
 def divergence_solve(
     be: Backend,
     fl: Fluid,
-    x,
-    v,
-    dens: Densities,
-    nl,
-    pairs,
+    at: SolveAt,
     k_total,
     sc: SolveScratch,
     dt: float,
@@ -45,7 +73,7 @@ def divergence_solve(
     cfg: DivergenceConfig,
     rate=None,
 ) -> tuple[int, float, bool]:
-    """Make D rho/Dt ~ 0 on `v` at the positions `x` (in place on v) [BK17 Alg. 2].
+    """Make D rho/Dt ~ 0 on `at.v` at the positions `at.x` [BK17 Alg. 2].
 
     Iterates k_i = alpha_i max(D rho_i/Dt, 0) / dt and the velocity correction until
     dt * mean(D rho/Dt) <= eta_v rho0, between the configured min and max iterations.
@@ -53,62 +81,61 @@ def divergence_solve(
     capped, where D rho_i/Dt > 0 (and the particle has >= MIN_NEIGHBOURS_WARM neighbours). `rate`, when given, is
     a D rho_i/Dt already at hand for that test (IPSPH: the viscosity pass's by-product), which
     saves one residual pass. `k_total` receives everything applied (the next warm start).
-    `dens`: the density pass at x. Returns (iterations, error, hit_cap).
+    Returns (iterations, error, hit_cap).
     """
-    eta = cfg.error_pct / 100.0
-    drho, k = sc.residual, sc.k
+    drho = sc.residual
+
+    def residual():
+        be.divergence_residual(at.x, at.v, fl.mf, at.dens, at.nl, at.pairs, fl.h, dt, drho, sc.k)
+
+    def error():
+        return dt * be.mean(drho) / fl.rho0
+
     if dt_prev is not None:
         if rate is None:
-            be.divergence_residual(x, v, fl.mf, dens, nl, pairs, fl.h, dt, drho, k)
+            residual()
             rate = drho  # already 0 below MIN_NEIGHBOURS_WARM neighbours
-        be.warm_stiffness(k_total, dt_prev / dt, rate, dens.n_nbrs, MIN_NEIGHBOURS_WARM, sc.warm)
-        be.apply_stiffness(x, fl.mf, dens, nl, pairs, fl.h, sc.warm, dt, v, k_total)
+        be.warm_stiffness(k_total, dt_prev / dt, rate, at.dens.n_nbrs, MIN_NEIGHBOURS_WARM, sc.warm)
+        at.apply(be, fl, sc.warm, dt, k_total)
     else:
         be.fill(k_total, 0.0)
-    be.divergence_residual(x, v, fl.mf, dens, nl, pairs, fl.h, dt, drho, k)
-    err = dt * be.mean(drho) / fl.rho0
-    it = 0
-    while it < cfg.max_iterations and (it < cfg.min_iterations or err > eta):
-        be.apply_stiffness(x, fl.mf, dens, nl, pairs, fl.h, k, dt, v, k_total)
-        be.divergence_residual(x, v, fl.mf, dens, nl, pairs, fl.h, dt, drho, k)
-        err = dt * be.mean(drho) / fl.rho0
-        it += 1
+    residual()
+    eta = cfg.error_pct / 100.0
+    it, err = _iterate(be, fl, at, sc, k_total, dt, residual, error, (eta, cfg.min_iterations, cfg.max_iterations))
     return it, err, bool(err > eta)
 
 
 def density_solve(
     be: Backend,
     fl: Fluid,
-    x,
-    v,
-    dens: Densities,
-    nl,
-    pairs,
+    at: SolveAt,
     k_total,
     sc: SolveScratch,
     dt: float,
     dt_prev: float | None,
     cfg: DFSPHConfig,
 ) -> tuple[int, bool]:
-    """Make rho + dt D rho/Dt(v) ~ rho0 (in place on v) [BK17 Alg. 3]: k_i = alpha_i (rho*_i - rho0)
+    """Make rho + dt D rho/Dt(v) ~ rho0 (in place on `at.v`) [BK17 Alg. 3]: k_i = alpha_i (rho*_i - rho0)
     / dt^2 until mean(rho* - rho0) <= eta rho0. Warm start: half of `k_total` rescaled by
     (dt_prev/dt)^2, capped, everywhere. Returns (iterations, hit_cap)."""
-    eta = cfg.density_error_pct / 100.0
-    res, k = sc.residual, sc.k
-    be.density_residual(x, v, fl.mf, dens, nl, pairs, fl.h, fl.rho0, dt, res, k)
+    res = sc.residual
+
+    def residual():
+        be.density_residual(at.x, at.v, fl.mf, at.dens, at.nl, at.pairs, fl.h, fl.rho0, dt, res, sc.k)
+
+    def error():
+        return be.mean(res) / fl.rho0
+
+    residual()
     if dt_prev is not None:
-        be.warm_stiffness(k_total, (dt_prev / dt) ** 2, None, dens.n_nbrs, 0, sc.warm)
-        be.apply_stiffness(x, fl.mf, dens, nl, pairs, fl.h, sc.warm, dt, v, k_total)
-        be.density_residual(x, v, fl.mf, dens, nl, pairs, fl.h, fl.rho0, dt, res, k)
+        be.warm_stiffness(k_total, (dt_prev / dt) ** 2, None, at.dens.n_nbrs, 0, sc.warm)
+        at.apply(be, fl, sc.warm, dt, k_total)
+        residual()
     else:
         be.fill(k_total, 0.0)
-    err = be.mean(res) / fl.rho0
-    it = 0
-    while it < cfg.density_max_iterations and (it < cfg.density_min_iterations or err > eta):
-        be.apply_stiffness(x, fl.mf, dens, nl, pairs, fl.h, k, dt, v, k_total)
-        be.density_residual(x, v, fl.mf, dens, nl, pairs, fl.h, fl.rho0, dt, res, k)
-        err = be.mean(res) / fl.rho0
-        it += 1
+    eta = cfg.density_error_pct / 100.0
+    stop = (eta, cfg.density_min_iterations, cfg.density_max_iterations)
+    it, err = _iterate(be, fl, at, sc, k_total, dt, residual, error, stop)
     return it, bool(err > eta)
 
 
