@@ -141,6 +141,34 @@ def _smallest_eigenvalue(a00, a11, a22, a01, a02, a12):
 
 
 @njit(inline="always", fastmath=FAST)
+def add_moment(f00, f11, f22, f01, f02, f12, kv, d0, d1, d2):
+    """F + kv d d^T in 6 entries (xx yy zz xy xz yz): one neighbour's term of F_i = sum_j V_j k_ij x_ij x_ij^T."""
+    return (
+        f00 + kv * d0 * d0,
+        f11 + kv * d1 * d1,
+        f22 + kv * d2 * d2,
+        f01 + kv * d0 * d1,
+        f02 + kv * d0 * d2,
+        f12 + kv * d1 * d2,
+    )
+
+
+@njit(inline="always", fastmath=FAST)
+def friction_block(full, f00, f11, f22, f01, f02, f12):
+    """psd((full / 3) I - F) in 6 entries: lifted by its smallest eigenvalue when that is negative
+    (a compressed neighbourhood)."""
+    third = full / 3.0
+    m00, m11, m22 = third - f00, third - f11, third - f22
+    m01, m02, m12 = -f01, -f02, -f12
+    low = _smallest_eigenvalue(m00, m11, m22, m01, m02, m12)
+    if low < 0.0:
+        m00 -= low
+        m11 -= low
+        m22 -= low
+    return m00, m11, m22, m01, m02, m12
+
+
+@njit(inline="always", fastmath=FAST)
 def viscous_setup_at(
     i, x, v, mf, rho, xb, mb, vb, nf, cf, nb, cb, h, rho0, nu_dt, wall_factor, full, buf, b, diag, wmat
 ):
@@ -180,12 +208,7 @@ def viscous_setup_at(
         d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
         r2 = d0 * d0 + d1 * d1 + d2 * d2
         kv = -10.0 * buf[C0, k] * grad_w_factor(math.sqrt(r2), h) / (r2 + eps_of(h))
-        f00 += kv * d0 * d0
-        f11 += kv * d1 * d1
-        f22 += kv * d2 * d2
-        f01 += kv * d0 * d1
-        f02 += kv * d0 * d2
-        f12 += kv * d1 * d2
+        f00, f11, f22, f01, f02, f12 = add_moment(f00, f11, f22, f01, f02, f12, kv, d0, d1, d2)
     kw = q0 = q1 = q2 = 0.0  # sum_b V_b k_ib (v_b)
     for k in range(n_f, n_f + n_b):
         d0, d1, d2 = buf[DX, k], buf[DY, k], buf[DZ, k]
@@ -198,14 +221,7 @@ def viscous_setup_at(
     m00 = m11 = m22 = m01 = m02 = m12 = 0.0
     vw0 = vw1 = vw2 = 0.0
     if kw > 0.0 and wall_factor > 0.0:
-        third = full / 3.0
-        m00, m11, m22 = third - f00, third - f11, third - f22
-        m01, m02, m12 = -f01, -f02, -f12
-        low = _smallest_eigenvalue(m00, m11, m22, m01, m02, m12)
-        if low < 0.0:  # lift the block to positive semi-definite (a compressed neighbourhood)
-            m00 -= low
-            m11 -= low
-            m22 -= low
+        m00, m11, m22, m01, m02, m12 = friction_block(full, f00, f11, f22, f01, f02, f12)
         sw = wall_factor * nu_dt
         m00, m11, m22, m01, m02, m12 = sw * m00, sw * m11, sw * m22, sw * m01, sw * m02, sw * m12
         vw0, vw1, vw2 = q0 / kw, q1 / kw, q2 / kw

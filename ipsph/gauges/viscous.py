@@ -22,54 +22,72 @@ import numpy as np
 from numba import njit
 
 from ..backends.kernels import grad_w_factor
-from ..backends.viscous_bodies import _smallest_eigenvalue, eps_of
+from ..backends.viscous_bodies import add_moment, eps_of, friction_block
 from .kernels import GRID_CELL_H, _grid, _q, add_force_torque, cell_range
 
 
-@njit(cache=True)
-def _friction(xs, vol, origin, dims, order, start, xa, ma, aorigin, adims, aorder, astart, i, cell, h, full, rho0, out):
-    """For fluid particle i: out = (M_i's 6 entries xx yy zz xy xz yz, sum_b V_b k_ib); M = 0 without walls."""
-    eps = eps_of(h)
-    f00 = f11 = f22 = f01 = f02 = f12 = 0.0
-    lo0, lo1, lo2, hi0, hi1, hi2 = cell_range(xs[i], origin, dims, cell, h)
+@njit(inline="always")
+def _near(p, pts, origin, dims, order, start, cell, h, found, offsets):
+    """The points of pts (on their grid `_grid`: origin, dims, order, start) closer than h to p, in the
+    grid's order: their indices into found[:n], (p - pts[j], |p - pts[j]|^2) into offsets[:n]. Returns n."""
+    n = 0
+    lo0, lo1, lo2, hi0, hi1, hi2 = cell_range(p, origin, dims, cell, h)
     for c2 in range(lo2, hi2 + 1):
         for c1 in range(lo1, hi1 + 1):
             for c0 in range(lo0, hi0 + 1):
                 c = c0 + dims[0] * (c1 + dims[1] * c2)
                 for t in range(start[c], start[c + 1]):
                     j = order[t]
-                    d0, d1, d2 = xs[i, 0] - xs[j, 0], xs[i, 1] - xs[j, 1], xs[i, 2] - xs[j, 2]
-                    r2 = d0 * d0 + d1 * d1 + d2 * d2
-                    if r2 < h * h and j != i:
-                        kv = -10.0 * vol[j] * grad_w_factor(math.sqrt(r2), h) / (r2 + eps)
-                        f00 += kv * d0 * d0
-                        f11 += kv * d1 * d1
-                        f22 += kv * d2 * d2
-                        f01 += kv * d0 * d1
-                        f02 += kv * d0 * d2
-                        f12 += kv * d1 * d2
-    kw = 0.0
-    lo0, lo1, lo2, hi0, hi1, hi2 = cell_range(xs[i], aorigin, adims, cell, h)
-    for c2 in range(lo2, hi2 + 1):
-        for c1 in range(lo1, hi1 + 1):
-            for c0 in range(lo0, hi0 + 1):
-                c = c0 + adims[0] * (c1 + adims[1] * c2)
-                for t in range(astart[c], astart[c + 1]):
-                    b = aorder[t]
-                    d0, d1, d2 = xs[i, 0] - xa[b, 0], xs[i, 1] - xa[b, 1], xs[i, 2] - xa[b, 2]
+                    d0, d1, d2 = p[0] - pts[j, 0], p[1] - pts[j, 1], p[2] - pts[j, 2]
                     r2 = d0 * d0 + d1 * d1 + d2 * d2
                     if r2 < h * h:
-                        kw += -10.0 * ma[b] / rho0 * grad_w_factor(math.sqrt(r2), h) / (r2 + eps)
+                        found[n] = j
+                        offsets[n, 0], offsets[n, 1], offsets[n, 2], offsets[n, 3] = d0, d1, d2, r2
+                        n += 1
+    return n
+
+
+@njit(cache=True)
+def _friction(
+    xs,
+    vol,
+    origin,
+    dims,
+    order,
+    start,
+    xa,
+    ma,
+    aorigin,
+    adims,
+    aorder,
+    astart,
+    i,
+    cell,
+    h,
+    full,
+    rho0,
+    found,
+    offsets,
+    out,
+):
+    """For fluid particle i: out = (M_i's 6 entries xx yy zz xy xz yz, sum_b V_b k_ib); M = 0 without walls.
+    found, offsets: `_near`'s scratch, as long as the fluid and the walls."""
+    eps = eps_of(h)
+    f00 = f11 = f22 = f01 = f02 = f12 = 0.0
+    for t in range(_near(xs[i], xs, origin, dims, order, start, cell, h, found, offsets)):
+        j = found[t]
+        if j != i:
+            d0, d1, d2, r2 = offsets[t, 0], offsets[t, 1], offsets[t, 2], offsets[t, 3]
+            kv = -10.0 * vol[j] * grad_w_factor(math.sqrt(r2), h) / (r2 + eps)
+            f00, f11, f22, f01, f02, f12 = add_moment(f00, f11, f22, f01, f02, f12, kv, d0, d1, d2)
+    kw = 0.0
+    for t in range(_near(xs[i], xa, aorigin, adims, aorder, astart, cell, h, found, offsets)):
+        r2 = offsets[t, 3]
+        kw += -10.0 * ma[found[t]] / rho0 * grad_w_factor(math.sqrt(r2), h) / (r2 + eps)
     out[:] = 0.0
     out[6] = kw
     if kw > 0.0:
-        third = full / 3.0
-        m00, m11, m22, m01, m02, m12 = third - f00, third - f11, third - f22, -f01, -f02, -f12
-        low = _smallest_eigenvalue(m00, m11, m22, m01, m02, m12)
-        if low < 0.0:
-            m00 -= low
-            m11 -= low
-            m22 -= low
+        m00, m11, m22, m01, m02, m12 = friction_block(full, f00, f11, f22, f01, f02, f12)
         out[0], out[1], out[2], out[3], out[4], out[5] = m00, m11, m22, m01, m02, m12
 
 
@@ -95,33 +113,26 @@ def wall_viscous_force(x, v, rho, m, idx, xw, mw, vw, xa, ma, h, nu, full, rho0,
     aorigin, adims, aorder, astart = _grid(xa, cell)
     fric = np.full((nc, 7), np.nan)  # per fluid particle, computed when a wall particle first needs it
     eps = eps_of(h)
+    found, offsets = np.empty(nc, np.int64), np.empty((nc, 4))  # wall particle b's fluid neighbours
+    inner, inner_offsets = np.empty(max(nc, xa.shape[0]), np.int64), np.empty((max(nc, xa.shape[0]), 4))
     out[:] = 0.0
     for b in range(xw.shape[0]):
         f0 = f1 = f2 = 0.0
-        lo0, lo1, lo2, hi0, hi1, hi2 = cell_range(xw[b], origin, dims, cell, h)
-        for c2 in range(lo2, hi2 + 1):
-            for c1 in range(lo1, hi1 + 1):
-                for c0 in range(lo0, hi0 + 1):
-                    c = c0 + dims[0] * (c1 + dims[1] * c2)
-                    for t in range(start[c], start[c + 1]):
-                        i = order[t]
-                        d0, d1, d2 = xs[i, 0] - xw[b, 0], xs[i, 1] - xw[b, 1], xs[i, 2] - xw[b, 2]
-                        r2 = d0 * d0 + d1 * d1 + d2 * d2
-                        if r2 >= h * h:
-                            continue
-                        if math.isnan(fric[i, 6]):
-                            _friction(
-                                xs, vol, origin, dims, order, start, xa, ma, aorigin, adims, aorder, astart,
-                                i, cell, h, full, rho0, fric[i],
-                            )  # fmt: skip
-                        kw = fric[i, 6]
-                        if not kw > 0.0:
-                            continue
-                        share = -10.0 * mw[b] / rho0 * grad_w_factor(math.sqrt(r2), h) / (r2 + eps) / kw
-                        u0, u1, u2 = vs[i, 0] - vw[b, 0], vs[i, 1] - vw[b, 1], vs[i, 2] - vw[b, 2]
-                        s = mass[i] * nu * share
-                        mi = fric[i]
-                        f0 += s * (mi[0] * u0 + mi[3] * u1 + mi[4] * u2)
-                        f1 += s * (mi[3] * u0 + mi[1] * u1 + mi[5] * u2)
-                        f2 += s * (mi[4] * u0 + mi[5] * u1 + mi[2] * u2)
+        for t in range(_near(xw[b], xs, origin, dims, order, start, cell, h, found, offsets)):
+            i, r2 = found[t], offsets[t, 3]
+            if math.isnan(fric[i, 6]):
+                _friction(
+                    xs, vol, origin, dims, order, start, xa, ma, aorigin, adims, aorder, astart,
+                    i, cell, h, full, rho0, inner, inner_offsets, fric[i],
+                )  # fmt: skip
+            kw = fric[i, 6]
+            if not kw > 0.0:
+                continue
+            share = -10.0 * mw[b] / rho0 * grad_w_factor(math.sqrt(r2), h) / (r2 + eps) / kw
+            u0, u1, u2 = vs[i, 0] - vw[b, 0], vs[i, 1] - vw[b, 1], vs[i, 2] - vw[b, 2]
+            s = mass[i] * nu * share
+            mi = fric[i]
+            f0 += s * (mi[0] * u0 + mi[3] * u1 + mi[4] * u2)
+            f1 += s * (mi[3] * u0 + mi[1] * u1 + mi[5] * u2)
+            f2 += s * (mi[4] * u0 + mi[5] * u1 + mi[2] * u2)
         add_force_torque(out, xw[b], centre, f0, f1, f2)
